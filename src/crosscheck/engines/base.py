@@ -1,0 +1,122 @@
+"""The engine adapter protocol: what every simulator behind crosscheck implements.
+
+An adapter builds its engine's model from a Scene (never from a hand-written model file), steps it
+with one named integrator at one step size, and returns a Trajectory in the one convention of
+crosscheck.state. It declares what it can do; a scene needing more gets "not applicable: reason".
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from crosscheck.scene.model import Scene
+from crosscheck.state import Trajectory
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    dimensions: frozenset[int]
+    shapes: frozenset[str]  # Shape.kind values
+    effects: frozenset[str]  # Effects.names() values
+    integrators: tuple[str, ...]  # the first is the engine's default
+    notes: dict[str, str] = field(default_factory=dict)  # integrator -> what it does to rotation
+
+    @property
+    def default_integrator(self) -> str:
+        return self.integrators[0]
+
+
+@runtime_checkable
+class Engine(Protocol):
+    name: str
+
+    def capabilities(self) -> Capabilities: ...
+
+    def version(self) -> str: ...
+
+    def not_applicable(self, scene: Scene, integrator: str) -> str | None:
+        """None if the engine can run this scene with this integrator, else the reason."""
+
+    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory: ...
+
+
+class EngineBase:
+    """Shared behaviour: the capability check, the sampling plan and the common meta fields."""
+
+    name = "base"
+
+    def capabilities(self) -> Capabilities:  # pragma: no cover - every adapter overrides
+        raise NotImplementedError
+
+    def version(self) -> str:  # pragma: no cover
+        raise NotImplementedError
+
+    def not_applicable(self, scene: Scene, integrator: str) -> str | None:
+        caps = self.capabilities()
+        if scene.dimension not in caps.dimensions:
+            return f"{self.name} has no {scene.dimension}D scenes"
+        if integrator not in caps.integrators:
+            return f"{self.name} has no integrator {integrator!r} (it has {list(caps.integrators)})"
+        for body in scene.bodies:
+            if body.shape.kind not in caps.shapes:
+                return f"{self.name} has no {body.shape.kind} shape (body {body.name!r})"
+        for effect in scene.effects.names():
+            if effect not in caps.effects:
+                return f"{self.name} cannot simulate the effect {effect!r}"
+        return None
+
+    def base_meta(self, scene: Scene, integrator: str, dt: float) -> dict[str, Any]:
+        """Fields every Trajectory carries so its arrays can be read with NumPy alone."""
+        return {
+            "case": scene.name,
+            "case_sha256": scene.source_sha256,
+            "engine": self.name,
+            "engine_version": self.version(),
+            "integrator": integrator,
+            "dt": dt,
+            "dimension": scene.dimension,
+            "bodies": list(scene.body_names),
+            "masses": [b.mass for b in scene.bodies],
+            "inertia_body": [np.asarray(b.inertia).tolist() for b in scene.bodies],
+            "com_body": [np.asarray(b.com).tolist() for b in scene.bodies],
+            "machine": platform.machine(),
+        }
+
+
+@dataclass(frozen=True)
+class SamplingPlan:
+    """How many steps between recorded samples, and how many samples in all."""
+
+    steps_per_sample: int
+    n_samples: int
+    dt: float
+
+    @property
+    def sample_interval(self) -> float:
+        return self.steps_per_sample * self.dt
+
+    def time(self, i: int) -> float:
+        return i * self.steps_per_sample * self.dt
+
+    @property
+    def total_steps(self) -> int:
+        return (self.n_samples - 1) * self.steps_per_sample
+
+
+def sampling_plan(scene: Scene, dt: float) -> SamplingPlan:
+    """Record every ``round(sample_every / dt)`` steps (at least 1) up to the case's duration.
+
+    Sample times are exact multiples of the step, so every engine is compared at the same times
+    when it runs at the same dt; a reference at another dt is interpolated by the comparer.
+    """
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"time step must be positive and finite, got {dt}")
+    steps = max(1, int(round(scene.run.sample_every / dt)))
+    interval = steps * dt
+    n = int(math.floor(scene.run.duration / interval + 1e-9)) + 1
+    return SamplingPlan(steps_per_sample=steps, n_samples=n, dt=dt)

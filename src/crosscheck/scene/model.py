@@ -1,0 +1,299 @@
+"""The Scene: a static, frozen, engine-neutral description of one case.
+
+Conventions (the same for every engine adapter; see docs/architecture.md):
+
+* SI units. 3D: z is up. 2D: the plane is x-y, y is up, angles counter-clockwise about +z.
+* Every body has a *body frame*: the frame its shape is declared in (a box centred on its origin,
+  a mesh in its file's coordinates). ``Body.position`` and ``Body.orientation`` place that frame in
+  the world at t = 0. The centre of mass sits at ``Body.com`` in the body frame (zero for the
+  primitives unless the case offsets it), and ``Body.inertia`` is the inertia tensor about the
+  centre of mass, expressed in the body frame (full 3x3, not necessarily diagonal).
+* Velocities are of the centre of mass, in the world frame; angular velocities are in the world
+  frame. Trajectories report the same quantities, plus the centre of mass in world coordinates.
+* Quaternions are (w, x, y, z), unit length, rotating body-frame vectors into the world frame.
+* 2D bodies use arrays of length 2 and scalar angle, angular velocity and moment of inertia.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ENGINE_NAMES = ("inhouse", "mujoco", "pybullet", "pymunk")
+
+
+# -- shapes ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Sphere:
+    radius: float
+    kind: str = "sphere"
+
+
+@dataclass(frozen=True)
+class Box:
+    size: np.ndarray  # full side lengths, (3,) in 3D or (2,) in 2D
+    kind: str = "box"
+
+
+@dataclass(frozen=True)
+class Capsule:
+    radius: float
+    length: float  # length of the cylindrical part, along the body z axis
+    kind: str = "capsule"
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    radius: float
+    length: float  # along the body z axis
+    kind: str = "cylinder"
+
+
+@dataclass(frozen=True)
+class Mesh:
+    path: Path  # resolved, absolute
+    vertices: np.ndarray  # (V, 3) in the body frame (the file's coordinates times scale)
+    faces: np.ndarray  # (F, 3) int
+    scale: float = 1.0
+    kind: str = "mesh"
+
+
+@dataclass(frozen=True)
+class Circle:
+    radius: float
+    kind: str = "circle"
+
+
+@dataclass(frozen=True)
+class Polygon:
+    vertices: np.ndarray  # (K, 2), counter-clockwise, convex
+    kind: str = "polygon"
+
+
+Shape = Sphere | Box | Capsule | Cylinder | Mesh | Circle | Polygon
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    friction: float = 0.5
+    restitution: float = 0.0
+
+
+# -- bodies ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Body:
+    """One rigid body at t = 0. See the module docstring for frames and conventions."""
+
+    name: str
+    shape: Shape
+    mass: float
+    com: np.ndarray  # centre of mass in the body frame, (3,) or (2,)
+    inertia: np.ndarray  # about the centre of mass in the body frame: (3, 3), or (1, 1) in 2D
+    position: np.ndarray  # world position of the body-frame origin
+    orientation: np.ndarray  # 3D: quaternion (w, x, y, z); 2D: array([angle])
+    velocity: np.ndarray  # of the centre of mass, world frame
+    angular_velocity: np.ndarray  # world frame; 2D: array([omega])
+    material: Material
+    mass_source: str = "given"  # "given" | "density"
+    inertia_source: str = "shape"  # "shape" | "given"
+
+    @property
+    def dimension(self) -> int:
+        return len(self.position)
+
+    @property
+    def angle(self) -> float:
+        """2D orientation angle in radians."""
+        return float(self.orientation[0])
+
+    @property
+    def moment(self) -> float:
+        """2D moment of inertia about the centre of mass."""
+        return float(self.inertia[0, 0])
+
+    def rotation(self) -> np.ndarray:
+        """Rotation matrix of the body frame at t = 0 (3x3, or 2x2 in 2D)."""
+        from crosscheck.rotations import angle_to_matrix, quat_to_matrix
+
+        if self.dimension == 2:
+            return angle_to_matrix(self.angle)
+        return quat_to_matrix(self.orientation)
+
+    def com_world(self) -> np.ndarray:
+        """Centre of mass in world coordinates at t = 0."""
+        return self.position + self.rotation() @ self.com
+
+    def inertia_world(self) -> np.ndarray:
+        """Inertia tensor about the centre of mass in world axes at t = 0 (3D)."""
+        r = self.rotation()
+        return r @ self.inertia @ r.T
+
+
+# -- effects --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Spring:
+    """Linear spring-damper between two attachment points.
+
+    Force on body a: ``-(k (l - rest_length) + c dl/dt) * e`` with ``e`` the unit vector from the
+    point on b to the point on a, ``l`` their distance. Body b gets the opposite force; the torque
+    of each follows from its attachment point relative to its centre of mass.
+    """
+
+    body_a: int  # body index
+    attach_a: np.ndarray  # body-frame point on a
+    body_b: int | None  # body index, or None for a world anchor
+    attach_b: np.ndarray  # body-frame point on b, or the world anchor point
+    stiffness: float  # N/m
+    damping: float  # N s/m along the spring axis
+    rest_length: float  # m
+
+
+@dataclass(frozen=True)
+class Drag:
+    """Linear viscous drag: F = -linear * v (of the centre of mass), tau = -angular * omega."""
+
+    linear: float  # N s/m
+    angular: float  # N m s
+    bodies: tuple[int, ...]  # indices the drag applies to
+
+
+@dataclass(frozen=True)
+class Load:
+    """A constant force at the centre of mass and a constant torque, both in the world frame."""
+
+    body: int
+    force: np.ndarray
+    torque: np.ndarray  # (3,) in 3D, (1,) in 2D
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Only what is listed here is simulated, in every engine."""
+
+    gravity: np.ndarray | None = None  # None: no gravity at all
+    springs: tuple[Spring, ...] = ()
+    drag: tuple[Drag, ...] = ()
+    loads: tuple[Load, ...] = ()
+    contact: bool = False  # reserved for the contact issue
+    fluid: bool = False  # set when the scene has a [fluid] domain
+
+    def names(self) -> tuple[str, ...]:
+        """The effect names the scene calls for, as engines declare them in capabilities."""
+        out = []
+        if self.gravity is not None:
+            out.append("gravity")
+        if self.springs:
+            out.append("springs")
+        if self.drag:
+            out.append("drag")
+        if self.loads:
+            out.append("loads")
+        if self.contact:
+            out.append("contact")
+        if self.fluid:
+            out.append("fluid")
+        return tuple(out)
+
+    def gravity_vector(self, dimension: int) -> np.ndarray:
+        return np.zeros(dimension) if self.gravity is None else self.gravity
+
+
+@dataclass(frozen=True)
+class Ground:
+    """A static plane: points p with normal . p = offset are on it; the normal points out of it."""
+
+    normal: np.ndarray
+    offset: float
+    material: Material
+
+
+# -- run, reference, tolerances -------------------------------------------------------------------
+@dataclass(frozen=True)
+class RunSettings:
+    duration: float  # s
+    dt: float  # default step, s
+    sample_every: float  # recording interval of the Trajectory, s
+    engines: tuple[str, ...]
+    integrators: dict[str, tuple[str, ...]]  # engine -> integrator names (empty: engine default)
+    timeout: float = 600.0  # wall seconds one cell may take before it is reported as a hang
+
+    def n_samples(self) -> int:
+        return int(round(self.duration / self.sample_every)) + 1
+
+    def sample_times(self) -> np.ndarray:
+        return np.arange(self.n_samples()) * self.sample_every
+
+
+@dataclass(frozen=True)
+class Reference:
+    """What a trajectory is compared with.
+
+    kind: "analytic" (``solution`` names a function in crosscheck.reference), "table" (a published
+    data set named by ``table``), "fine-step" (``engine``/``integrator`` at step ``dt``), "engine"
+    (another engine's run at the same step), or "none".
+    """
+
+    kind: str = "none"
+    solution: str | None = None
+    table: str | None = None
+    engine: str | None = None
+    integrator: str | None = None
+    dt: float | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Threshold on one metric: a default, overridden by integrator, engine or 'engine.integrator'.
+
+    The most specific entry wins: ``engine.integrator`` > ``integrator`` > ``engine`` > default.
+    A metric passes when ``value <= limit``.
+    """
+
+    metric: str
+    default: float | None
+    overrides: dict[str, float] = field(default_factory=dict)
+
+    def limit(self, engine: str, integrator: str) -> float | None:
+        for key in (f"{engine}.{integrator}", integrator, engine):
+            if key in self.overrides:
+                return self.overrides[key]
+        return self.default
+
+
+# -- the scene ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    description: str
+    tags: tuple[str, ...]
+    dimension: int  # 2 or 3
+    run: RunSettings
+    effects: Effects
+    bodies: tuple[Body, ...]
+    ground: Ground | None
+    materials: dict[str, Material]
+    reference: Reference
+    tolerances: dict[str, Tolerance]
+    engine_options: dict[str, dict[str, Any]]  # engine -> options pinned by the case
+    fluid: Any = None  # crosscheck.scene.fluid.FluidSpec, or None for rigid scenes
+    source: Path | None = None  # the case file
+    source_sha256: str | None = None
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        return tuple(b.name for b in self.bodies)
+
+    def body_index(self, name: str) -> int:
+        return self.body_names.index(name)
+
+    @property
+    def masses(self) -> np.ndarray:
+        return np.array([b.mass for b in self.bodies])
+
+    def integrators_for(self, engine: str) -> tuple[str, ...]:
+        return self.run.integrators.get(engine, ())
