@@ -459,13 +459,16 @@ def sampled_mass_properties(mesh, density: float, n_samples: int = 100_000,
     (seed)``, so deterministic for a given seed); inside test :func:`points_inside`. With
     ``k`` points inside: ``m = rho V_box k / N``, com = mean of the inside points,
     ``I = (m / k) sum ( |r_i|^2 E - r_i r_i^T )``, ``r_i`` from the com. The statistical error
-    decreases like ``1 / sqrt(N)``. ``mesh`` is a ``trimesh.Trimesh`` (or a
-    ``(vertices, faces)`` pair); it must be a closed volume.
+    decreases like ``1 / sqrt(N)``. ``mesh`` is a ``trimesh.Trimesh`` (checked with
+    :func:`check_closed_volume`, raises :class:`MeshError`) or a ``(vertices, faces)`` pair
+    (not checked); it must be a closed volume.
     """
     rho = _positive(density, "density")
     n = int(n_samples)
     if n < 1:
         raise ValueError(f"n_samples must be >= 1, got {n_samples!r}")
+    if hasattr(mesh, "is_watertight"):
+        check_closed_volume(mesh)  # parity is meaningless for an open surface
     tri = _triangles(mesh)
     flat = tri.reshape(-1, 3)
     lo, hi = flat.min(axis=0), flat.max(axis=0)
