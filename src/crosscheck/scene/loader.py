@@ -1,0 +1,513 @@
+"""Case file (TOML) -> immutable Scene, refusing bad input with one precise message.
+
+Every refusal is a :class:`crosscheck.errors.CaseError` naming the file, the field path and what
+was expected; nothing else escapes :func:`load_case` (a property the tests check with Hypothesis).
+The format is documented key by key in docs/cases.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crosscheck.errors import CaseError
+from crosscheck.rotations import axis_angle_to_quat
+from crosscheck.scene import massprops
+from crosscheck.scene.fields import Fields, check_number, check_vector, one_of
+from crosscheck.scene.model import (
+    ENGINE_NAMES,
+    Body,
+    Box,
+    Capsule,
+    Circle,
+    Cylinder,
+    Drag,
+    Effects,
+    Ground,
+    Load,
+    Material,
+    Mesh,
+    Polygon,
+    Reference,
+    RunSettings,
+    Scene,
+    Sphere,
+    Spring,
+    Tolerance,
+)
+
+DEFAULT_MATERIAL = Material(name="default", friction=0.5, restitution=0.0)
+REFERENCE_KINDS = ("analytic", "table", "fine-step", "engine", "none")
+QUATERNION_UNIT_TOLERANCE = 1e-6  # |q| may differ from 1 by this much (then it is normalised)
+
+
+def load_case(path: str | Path) -> Scene:
+    """Read and validate one case file."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CaseError(path, "", "a readable case file", exc.strerror or str(exc)) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise CaseError(path, "", "a UTF-8 text file") from None
+    return _load(text, path, path.parent, hashlib.sha256(data).hexdigest())
+
+
+def load_case_text(text: str, name: str = "<text>", base_dir: str | Path = ".") -> Scene:
+    """Load a case from a TOML string (tests, generated cases); mesh paths resolve in base_dir."""
+    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return _load(text, Path(name), Path(base_dir), digest)
+
+
+def is_case_file(path: str | Path) -> bool:
+    """A TOML file with a top-level [case] table (so pyproject.toml is never taken for a case)."""
+    path = Path(path)
+    if path.suffix != ".toml":
+        return False
+    try:
+        return "case" in tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return True  # let load_case report what is wrong with it
+
+
+def find_cases(paths: list[str | Path]) -> list[Path]:
+    """Case files under the given files and folders, sorted, folders searched recursively."""
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found.extend(f for f in sorted(p.rglob("*.toml")) if is_case_file(f))
+        else:
+            found.append(p)
+    return found
+
+
+# -- the whole file -------------------------------------------------------------------------------
+def _load(text: str, file: Path, base_dir: Path, digest: str) -> Scene:
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(file, "", f"valid TOML ({exc})") from None
+    top = Fields(raw, "", file)
+
+    case = top.sub("case")
+    name = case.string("name")
+    if not name.strip():
+        raise case.error("name", "a non-empty name")
+    description = case.string("description", "")
+    tags = case.string_list("tags", [])
+    dimension = case.integer("dimension")
+    if dimension not in (2, 3):
+        raise case.error("dimension", "2 or 3", dimension)
+    case.done()
+
+    run = _run(top.sub("run"))
+    materials = _materials(top.sub("materials", {}))
+    has_fluid = top.has("fluid")
+    fluid = None
+    if has_fluid:
+        fluid = _fluid(top.sub("fluid"), dimension)
+
+    body_tables = top.table_list("bodies", [])
+    if not body_tables and not has_fluid:
+        raise CaseError(file, "bodies", "at least one [[bodies]] entry")
+    bodies = tuple(_body(b, dimension, materials, base_dir) for b in body_tables)
+    names = [b.name for b in bodies]
+    for i, n in enumerate(names):
+        if names.index(n) != i:
+            raise CaseError(file, f"bodies[{i}].name", "a name no other body has", n)
+
+    effects = _effects(top.sub("effects", {}), dimension, names, has_fluid)
+    ground = _ground(top.sub("ground"), dimension, materials) if top.has("ground") else None
+    reference = _reference(top.sub("reference", {}))
+    tolerances = _tolerances(top.sub("tolerances", {}))
+    engine_options = _engine_options(top.sub("engine_options", {}))
+    top.done()
+
+    return Scene(
+        name=name, description=description, tags=tags, dimension=dimension, run=run,
+        effects=effects, bodies=bodies, ground=ground, materials=materials, reference=reference,
+        tolerances=tolerances, engine_options=engine_options, fluid=fluid, source=file,
+        source_sha256=digest,
+    )
+
+
+def _fluid(fields: Fields, dimension: int) -> Any:
+    # The fluid section has its own parser beside the solver that understands it.
+    from crosscheck.scene.fluid import parse_fluid
+
+    return parse_fluid(fields, dimension)
+
+
+# -- sections -------------------------------------------------------------------------------------
+def _run(f: Fields) -> RunSettings:
+    duration = f.number("duration", positive=True, unit="s")
+    dt = f.number("dt", positive=True, unit="s")
+    if dt > duration:
+        raise f.error("dt", f"a step no longer than run.duration ({duration} s)", dt)
+    sample_every = f.number("sample_every", dt, positive=True, unit="s")
+    if sample_every > duration:
+        raise f.error("sample_every", f"an interval no longer than run.duration ({duration} s)",
+                      sample_every)
+    engines = f.string_list("engines", list(ENGINE_NAMES))
+    for i, e in enumerate(engines):
+        if e not in ENGINE_NAMES:
+            raise CaseError(f.file, f"{f.field('engines')}[{i}]", f"one of {list(ENGINE_NAMES)}", e)
+    integrators: dict[str, tuple[str, ...]] = {}
+    if f.has("integrators"):
+        table = f.sub("integrators")
+        for engine in list(table.table):
+            if engine not in ENGINE_NAMES:
+                raise table.error(engine, f"an engine name, one of {list(ENGINE_NAMES)}",
+                                  f"unknown key {engine!r}")
+            names = table.string_list(engine)
+            if not names:
+                raise table.error(engine, "at least one integrator name")
+            integrators[engine] = names
+        table.done()
+    timeout = f.number("timeout", 600.0, positive=True, unit="s")
+    f.done()
+    return RunSettings(duration=duration, dt=dt, sample_every=sample_every, engines=engines,
+                       integrators=integrators, timeout=timeout)
+
+
+def _materials(f: Fields) -> dict[str, Material]:
+    out = {"default": DEFAULT_MATERIAL}
+    for key in list(f.table):
+        m = f.sub(key)
+        out[key] = Material(
+            name=key,
+            friction=m.number("friction", DEFAULT_MATERIAL.friction, nonnegative=True),
+            restitution=m.number("restitution", DEFAULT_MATERIAL.restitution, nonnegative=True),
+        )
+        if out[key].restitution > 1:
+            raise m.error("restitution", "a coefficient between 0 and 1", out[key].restitution)
+        m.done()
+    f.done()
+    return out
+
+
+def _material_ref(f: Fields, materials: dict[str, Material]) -> Material:
+    name = f.string("material", "default")
+    if name not in materials:
+        raise f.error("material", f"a material defined under [materials] ({sorted(materials)})",
+                      name)
+    return materials[name]
+
+
+# -- bodies ---------------------------------------------------------------------------------------
+def _shape(f: Fields, dimension: int, base_dir: Path) -> Any:
+    def size(n: int):
+        return lambda s: _done(s, Box(size=s.vector("size", n, positive=True, unit="m")))
+
+    def radius_only(cls):
+        return lambda s: _done(s, cls(radius=s.number("radius", positive=True, unit="m")))
+
+    def radius_length(cls):
+        return lambda s: _done(s, cls(radius=s.number("radius", positive=True, unit="m"),
+                                      length=s.number("length", positive=True, unit="m")))
+
+    if dimension == 3:
+        options = {
+            "sphere": radius_only(Sphere),
+            "box": size(3),
+            "capsule": radius_length(Capsule),
+            "cylinder": radius_length(Cylinder),
+            "mesh": lambda s: _mesh(s, base_dir),
+        }
+    else:
+        options = {"circle": radius_only(Circle), "box": size(2), "polygon": _polygon}
+    return one_of(f, "shape", options)[1]
+
+
+def _done(f: Fields, value: Any) -> Any:
+    f.done()
+    return value
+
+
+def _mesh(f: Fields, base_dir: Path) -> Mesh:
+    rel = f.string("file")
+    scale = f.number("scale", 1.0, positive=True)
+    f.done()
+    path = (base_dir / rel).resolve()
+    try:
+        mesh = massprops.load_mesh(path)
+        massprops.check_closed_volume(mesh)
+    except massprops.MeshError as exc:
+        raise CaseError(f.file, f.field("file"), str(exc), rel) from None
+    vertices = np.asarray(mesh.vertices, float) * scale
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    vertices.setflags(write=False)
+    faces.setflags(write=False)
+    return Mesh(path=path, vertices=vertices, faces=faces, scale=scale)
+
+
+def _polygon(f: Fields) -> Polygon:
+    raw = f.raw("vertices")
+    field = f.field("vertices")
+    if not isinstance(raw, list) or len(raw) < 3:
+        raise CaseError(f.file, field, "an array of at least 3 [x, y] points", raw)
+    pts = np.array([check_vector(p, 2, f.file, f"{field}[{i}]", unit="m")
+                    for i, p in enumerate(raw)])
+    f.done()
+    edges = np.roll(pts, -1, axis=0) - pts
+    area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+    if abs(area2) < 1e-12:
+        raise CaseError(f.file, field, "a polygon with non-zero area", raw)
+    if area2 < 0:  # clockwise: store counter-clockwise, the convention of the 2D engines
+        pts = pts[::-1].copy()
+        edges = np.roll(pts, -1, axis=0) - pts
+    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+    if np.any(turns < -1e-12 * np.max(np.abs(pts)) ** 2):
+        raise CaseError(f.file, field, "a convex polygon", raw)
+    pts.setflags(write=False)
+    return Polygon(vertices=pts)
+
+
+def _mass_properties(shape: Any, density: float) -> Any:
+    """Mass, centroid and inertia about the centroid of a uniform-density shape."""
+    match shape:
+        case Sphere(radius=r):
+            return massprops.sphere(r, density)
+        case Box(size=s) if len(s) == 3:
+            return massprops.box(s, density)
+        case Box(size=s):
+            return massprops.box2d(s, density)
+        case Capsule(radius=r, length=ln):
+            return massprops.capsule(r, ln, density)
+        case Cylinder(radius=r, length=ln):
+            return massprops.cylinder(r, ln, density)
+        case Mesh(vertices=v, faces=fc):
+            return massprops.mesh_mass_properties(v, fc, density)
+        case Circle(radius=r):
+            return massprops.circle(r, density)
+        case Polygon(vertices=v):
+            return massprops.polygon(v, density)
+    raise TypeError(f"no mass properties for {shape!r}")  # pragma: no cover
+
+
+def _body(f: Fields, dimension: int, materials: dict[str, Material], base_dir: Path) -> Body:
+    name = f.string("name")
+    shape = _shape(f, dimension, base_dir)
+
+    if f.has("mass") == f.has("density"):
+        raise CaseError(f.file, f.field("mass"), "exactly one of mass (kg) or density",
+                        "both" if f.has("mass") else "neither")
+    if f.has("mass"):
+        mass = f.number("mass", positive=True, unit="kg")
+        props = massprops.with_mass(_mass_properties(shape, 1.0), mass)
+        mass_source = "given"
+    else:
+        density = f.number("density", positive=True,
+                           unit="kg/m^3" if dimension == 3 else "kg/m^2")
+        props = _mass_properties(shape, density)
+        mass = float(props.mass)
+        mass_source = "density"
+
+    com = f.vector("com", dimension, None, unit="m")
+    if com is None:
+        com = np.asarray(props.com, float)
+
+    inertia_source = "shape"
+    if f.has("inertia"):
+        inertia = _inertia(f, dimension)
+        inertia_source = "given"
+    elif dimension == 3:
+        # A com offset moves the mass distribution, not its shape about the com: the inertia
+        # about the centre of mass stays the shape's own about its centroid.
+        inertia = np.asarray(props.inertia, float)
+    else:
+        inertia = np.array([[float(props.moment)]])
+
+    position = f.vector("position", dimension, unit="m")
+    if dimension == 3:
+        orientation = _orientation(f)
+        velocity = f.vector("velocity", 3, [0, 0, 0], unit="m/s")
+        angular_velocity = f.vector("angular_velocity", 3, [0, 0, 0], unit="rad/s")
+    else:
+        orientation = np.array([f.number("orientation", 0.0, unit="rad")])
+        velocity = f.vector("velocity", 2, [0, 0], unit="m/s")
+        angular_velocity = np.array([f.number("angular_velocity", 0.0, unit="rad/s")])
+    material = _material_ref(f, materials)
+    f.done()
+    for arr in (com, inertia, orientation, angular_velocity):
+        arr.setflags(write=False)
+    return Body(name=name, shape=shape, mass=mass, com=com, inertia=inertia, position=position,
+                orientation=orientation, velocity=velocity, angular_velocity=angular_velocity,
+                material=material, mass_source=mass_source, inertia_source=inertia_source)
+
+
+def _inertia(f: Fields, dimension: int) -> np.ndarray:
+    field = f.field("inertia")
+    raw = f.raw("inertia")
+    if dimension == 2:
+        return np.array([[check_number(raw, f.file, field, positive=True, unit="kg m^2")]])
+    if isinstance(raw, list) and len(raw) == 3 and all(isinstance(r, list) for r in raw):
+        tensor = np.array([check_vector(r, 3, f.file, f"{field}[{i}]", unit="kg m^2")
+                           for i, r in enumerate(raw)])
+        scale = np.max(np.abs(tensor))
+        if not np.allclose(tensor, tensor.T, rtol=0, atol=1e-12 * max(scale, 1e-300)):
+            raise CaseError(f.file, field, "a symmetric 3x3 tensor", raw)
+        tensor = 0.5 * (tensor + tensor.T)
+    else:
+        diag = check_vector(raw, 3, f.file, field, positive=True, unit="kg m^2")
+        tensor = np.diag(diag)
+    moments = np.linalg.eigvalsh(tensor)
+    if moments[0] <= 0:
+        raise CaseError(f.file, field, "a positive definite inertia tensor", raw)
+    # A rigid body's principal moments satisfy the triangle inequality I1 + I2 >= I3.
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise CaseError(f.file, field,
+                        "principal moments satisfying the triangle inequality I1 + I2 >= I3",
+                        raw)
+    return tensor
+
+
+def _orientation(f: Fields) -> np.ndarray:
+    field = f.field("orientation")
+    raw = f.raw("orientation", [1.0, 0.0, 0.0, 0.0])
+    if isinstance(raw, dict):
+        sub = Fields(raw, field, f.file)
+        axis = sub.vector("axis", 3)
+        angle = sub.number("angle", unit="rad")
+        sub.done()
+        if np.linalg.norm(axis) < 1e-12:
+            raise CaseError(f.file, f"{field}.axis", "a non-zero axis", axis.tolist())
+        return axis_angle_to_quat(axis, angle)
+    q = check_vector(raw, 4, f.file, field)
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > QUATERNION_UNIT_TOLERANCE:
+        raise CaseError(f.file, field,
+                        f"a unit quaternion [w, x, y, z] (|q| within {QUATERNION_UNIT_TOLERANCE}"
+                        " of 1) or { axis = [...], angle = radians }", f"|q| = {norm:.6g}")
+    return q / norm
+
+
+# -- effects, ground, reference, tolerances -------------------------------------------------------
+def _body_name(f: Fields, key: str, names: list[str]) -> int:
+    name = f.string(key)
+    if name not in names:
+        raise f.error(key, f"the name of a body ({names})", name)
+    return names.index(name)
+
+
+def _effects(f: Fields, dimension: int, names: list[str], has_fluid: bool) -> Effects:
+    gravity = f.vector("gravity", dimension, None, unit="m/s^2")
+    contact = f.boolean("contact", False)
+    springs = []
+    for s in f.table_list("springs", []):
+        a = _body_name(s, "a", names)
+        attach_a = s.vector("attach_a", dimension, [0.0] * dimension, unit="m")
+        if s.has("b") == s.has("anchor"):
+            raise CaseError(s.file, s.field("b"), "exactly one of b (a body) or anchor (a point)",
+                            "both" if s.has("b") else "neither")
+        if s.has("b"):
+            b = _body_name(s, "b", names)
+            if b == a:
+                raise s.error("b", "a body other than a", names[b])
+            attach_b = s.vector("attach_b", dimension, [0.0] * dimension, unit="m")
+        else:
+            b = None
+            attach_b = s.vector("anchor", dimension, unit="m")
+        springs.append(Spring(
+            body_a=a, attach_a=attach_a, body_b=b, attach_b=attach_b,
+            stiffness=s.number("stiffness", positive=True, unit="N/m"),
+            damping=s.number("damping", 0.0, nonnegative=True, unit="N s/m"),
+            rest_length=s.number("rest_length", 0.0, nonnegative=True, unit="m"),
+        ))
+        s.done()
+    drags = []
+    for d in f.table_list("drag", []):
+        if d.has("bodies"):
+            listed = d.string_list("bodies")
+            for i, n in enumerate(listed):
+                if n not in names:
+                    raise CaseError(d.file, f"{d.field('bodies')}[{i}]",
+                                    f"the name of a body ({names})", n)
+            idx = tuple(names.index(n) for n in listed)
+        else:
+            idx = tuple(range(len(names)))
+        drags.append(Drag(linear=d.number("linear", 0.0, nonnegative=True, unit="N s/m"),
+                          angular=d.number("angular", 0.0, nonnegative=True, unit="N m s"),
+                          bodies=idx))
+        d.done()
+    loads = []
+    for ld in f.table_list("loads", []):
+        body = _body_name(ld, "body", names)
+        force = ld.vector("force", dimension, [0.0] * dimension, unit="N")
+        if dimension == 3:
+            torque = ld.vector("torque", 3, [0.0, 0.0, 0.0], unit="N m")
+        else:
+            torque = np.array([ld.number("torque", 0.0, unit="N m")])
+        loads.append(Load(body=body, force=force, torque=torque))
+        ld.done()
+    f.done()
+    return Effects(gravity=gravity, springs=tuple(springs), drag=tuple(drags), loads=tuple(loads),
+                   contact=contact, fluid=has_fluid)
+
+
+def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground:
+    up = [0.0, 0.0, 1.0] if dimension == 3 else [0.0, 1.0]
+    normal = f.vector("normal", dimension, up)
+    length = float(np.linalg.norm(normal))
+    if length < 1e-12:
+        raise f.error("normal", "a non-zero normal vector", normal.tolist())
+    ground = Ground(normal=normal / length, offset=f.number("offset", 0.0, unit="m"),
+                    material=_material_ref(f, materials))
+    f.done()
+    return ground
+
+
+def _reference(f: Fields) -> Reference:
+    kind = f.string("kind", "none", choices=REFERENCE_KINDS)
+    ref = Reference(
+        kind=kind,
+        solution=f.string("solution", None) if f.has("solution") else None,
+        table=f.string("table", None) if f.has("table") else None,
+        engine=f.string("engine", None, choices=ENGINE_NAMES) if f.has("engine") else None,
+        integrator=f.string("integrator", None) if f.has("integrator") else None,
+        dt=f.number("dt", positive=True, unit="s") if f.has("dt") else None,
+        params=f.sub("params").table if f.has("params") else {},
+    )
+    required = {"analytic": "solution", "table": "table", "fine-step": "dt", "engine": "engine"}
+    if kind in required and getattr(ref, required[kind]) is None:
+        raise CaseError(f.file, f.field(required[kind]),
+                        f"this field, required when reference.kind = {kind!r}")
+    f.done()
+    return ref
+
+
+def _tolerances(f: Fields) -> dict[str, Tolerance]:
+    out = {}
+    for metric in list(f.table):
+        value = f.raw(metric)
+        field = f.field(metric)
+        if isinstance(value, dict):
+            sub = Fields(value, field, f.file)
+            default = sub.number("default", None, nonnegative=True)
+            overrides = {k: sub.number(k, nonnegative=True) for k in value if k != "default"}
+            sub.done()
+            if default is None and not overrides:
+                raise CaseError(f.file, field, "a limit, or a table with default and overrides")
+            out[metric] = Tolerance(metric=metric, default=default, overrides=overrides)
+        else:
+            limit = check_number(value, f.file, field, nonnegative=True)
+            out[metric] = Tolerance(metric=metric, default=limit)
+    f.done()
+    return out
+
+
+def _engine_options(f: Fields) -> dict[str, dict[str, Any]]:
+    out = {}
+    for engine in list(f.table):
+        if engine not in ENGINE_NAMES:
+            raise f.error(engine, f"an engine name, one of {list(ENGINE_NAMES)}",
+                          f"unknown key {engine!r}")
+        out[engine] = dict(f.sub(engine).table)
+    f.done()
+    return out
