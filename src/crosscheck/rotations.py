@@ -49,19 +49,24 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
     flat = m.reshape(-1, 3, 3)
     out = np.empty((flat.shape[0], 4))
     for i, r in enumerate(flat):
+        # Branch on the largest of w, x, y, z to avoid dividing by a small number.
         tr = r[0, 0] + r[1, 1] + r[2, 2]
         if tr > 0:
             s = 2.0 * np.sqrt(tr + 1.0)
-            q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
+            q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
+                 (r[1, 0] - r[0, 1]) / s]
         elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
             s = 2.0 * np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
-            q = [(r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s]
+            q = [(r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s,
+                 (r[0, 2] + r[2, 0]) / s]
         elif r[1, 1] > r[2, 2]:
             s = 2.0 * np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
-            q = [(r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s]
+            q = [(r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s,
+                 (r[1, 2] + r[2, 1]) / s]
         else:
             s = 2.0 * np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
-            q = [(r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s]
+            q = [(r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s,
+                 0.25 * s]
         q = np.array(q)
         out[i] = q if q[0] >= 0 else -q
     out /= np.linalg.norm(out, axis=1, keepdims=True)

@@ -77,7 +77,8 @@ class Fields:
             raise self.error(key, "an array of tables ([[...]] entries)", value)
         return [Fields(v, f"{self.field(key)}[{i}]", self.file) for i, v in enumerate(value)]
 
-    def string(self, key: str, default: Any = _MISSING, choices: Iterable[str] | None = None) -> str:
+    def string(self, key: str, default: Any = _MISSING,
+               choices: Iterable[str] | None = None) -> str:
         value = self._get(key, default)
         if value is default and default is not _MISSING:
             return value
