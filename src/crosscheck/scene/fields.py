@@ -33,6 +33,9 @@ class Fields:
             raise CaseError(file, path, "a table", table)
         self.table = table
         self._used: set[str] = set()
+        # Keys the parser looked at, read or only tested with has(): the valid keys an
+        # unknown-key error lists (a key only tested for, e.g. an absent optional one, is valid).
+        self._known: set[str] = set()
 
     # -- paths and errors -------------------------------------------------------------------
     def field(self, key: str | int) -> str:
@@ -44,10 +47,12 @@ class Fields:
         return CaseError(self.file, self.field(key), expected, got)
 
     def has(self, key: str) -> bool:
+        self._known.add(key)
         return key in self.table
 
     def _get(self, key: str, default: Any) -> Any:
         self._used.add(key)
+        self._known.add(key)
         if key in self.table:
             return self.table[key]
         if default is _MISSING:
@@ -58,7 +63,7 @@ class Fields:
         """Refuse keys that were never read (typos) with the list of keys that are valid here."""
         unknown = [k for k in self.table if k not in self._used and k not in set(allowed_extra)]
         if unknown:
-            valid = sorted(self._used | set(allowed_extra))
+            valid = sorted(self._known | set(allowed_extra))
             raise CaseError(
                 self.file, self.field(unknown[0]), f"one of the known keys {valid}",
                 f"unknown key {unknown[0]!r}",
