@@ -1,0 +1,302 @@
+"""The ``[fluid]`` section of a case file: a free-surface (or enclosed) incompressible fluid domain.
+
+Every key is read through a :class:`~crosscheck.scene.fields.Fields` cursor so that bad input names
+the file, the field path (``fluid.obstacles[1].box.size``) and what was expected. The keys, units
+and defaults are documented in ``docs/fluid.md``; keep the two in step.
+
+The result is a frozen :class:`FluidSpec`. It is engine-neutral: the in-house MAC-grid solver
+(:mod:`crosscheck.sim.fluid`) reads it, the metrics and plots read it, nothing here depends on the
+solver.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from crosscheck.errors import CaseError
+from crosscheck.scene.fields import Fields
+
+SIDES_2D = ("left", "right", "bottom", "top")
+WALL_KINDS = ("solid", "open")
+OUTPUT_FIELDS = ("u", "v", "phi", "p")
+
+
+# -- shapes ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Box:
+    """Axis-aligned box: centre and full side lengths (m)."""
+
+    center: tuple[float, ...]
+    size: tuple[float, ...]
+
+    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        qx = np.abs(x - self.center[0]) - 0.5 * self.size[0]
+        qy = np.abs(y - self.center[1]) - 0.5 * self.size[1]
+        outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+        inside = np.minimum(np.maximum(qx, qy), 0.0)
+        return outside + inside
+
+
+@dataclass(frozen=True)
+class Circle:
+    """Disc: centre and radius (m)."""
+
+    center: tuple[float, ...]
+    radius: float
+
+    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.hypot(x - self.center[0], y - self.center[1]) - self.radius
+
+
+@dataclass(frozen=True)
+class Layer:
+    """Fluid below the surface ``y = depth + amplitude * cos(2 pi x / wavelength + phase)``.
+
+    The tank at rest (amplitude 0) and the sloshing tank (cosine perturbation) are layers. The
+    function returned is only approximately a distance; the solver redistances it at start.
+    """
+
+    depth: float
+    amplitude: float = 0.0
+    wavelength: float = math.inf
+    phase: float = 0.0
+
+    def surface(self, x: np.ndarray) -> np.ndarray:
+        if not math.isfinite(self.wavelength):
+            return self.depth + self.amplitude * math.cos(self.phase) + 0.0 * x
+        return self.depth + self.amplitude * np.cos(2 * math.pi * x / self.wavelength + self.phase)
+
+    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return y - self.surface(x)
+
+
+Shape = Box | Circle | Layer
+
+
+@dataclass(frozen=True)
+class RegionPart:
+    """One entry of the initial fluid region: a shape added to (or subtracted from) the union."""
+
+    shape: Shape
+    subtract: bool = False
+
+
+@dataclass(frozen=True)
+class Rotation:
+    """Prescribed rigid rotation velocity field ``u = omega x (x - center)`` (rad/s, m)."""
+
+    center: tuple[float, ...]
+    angular_velocity: float
+
+    def velocity(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        w = self.angular_velocity
+        return -w * (y - self.center[1]), w * (x - self.center[0])
+
+
+@dataclass(frozen=True)
+class Lid:
+    """A solid side moving tangentially (lid-driven cavity). ``speed`` in m/s, positive along +x
+    for the bottom/top sides and +y for the left/right sides."""
+
+    side: str
+    speed: float
+
+
+@dataclass(frozen=True)
+class ParticleSpec:
+    """Particle level set (Enright et al. 2002) parameters."""
+
+    enabled: bool = False
+    per_cell: int = 16
+    band: float = 3.0           # seeding band half-width, cells
+    reseed_every: int = 20      # steps between reseeding
+    seed: int = 12345           # random seed of particle placement (runs are reproducible)
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    fields: tuple[str, ...] = ("u", "v", "phi")
+    field_every: float | None = None   # s; None: the run decides (about 40 frames)
+    probe_x: float | None = None       # m; x of the surface-height probe; None: first column
+
+
+@dataclass(frozen=True)
+class FluidSpec:
+    """A 2D incompressible fluid domain with optional free surface. SI units throughout."""
+
+    domain: tuple[float, ...]
+    resolution: tuple[int, ...]
+    walls: dict[str, str] = field(default_factory=dict)
+    no_slip: bool = False
+    lid: Lid | None = None
+    obstacles: tuple[Shape, ...] = ()
+    initial: tuple[RegionPart, ...] = ()   # empty: the domain is full of fluid (no free surface)
+    density: float = 1000.0
+    kinematic_viscosity: float = 0.0
+    cfl: float = 1.0
+    cfl_limit: float = 2.0
+    redistance_every: int = 1
+    pressure_tolerance: float = 1e-6
+    min_volume_fraction: float = 0.5
+    prescribed_velocity: Rotation | None = None
+    particles: ParticleSpec = ParticleSpec()
+    output: OutputSpec = OutputSpec()
+
+    @property
+    def dimension(self) -> int:
+        return len(self.domain)
+
+    @property
+    def dx(self) -> float:
+        return self.domain[0] / self.resolution[0]
+
+    @property
+    def has_surface(self) -> bool:
+        return len(self.initial) > 0
+
+    @property
+    def dynamic_viscosity(self) -> float:
+        return self.kinematic_viscosity * self.density
+
+
+# -- parsing ----------------------------------------------------------------------------------
+def _point(f: Fields, key: str, dim: int, default: Any = None) -> tuple[float, ...]:
+    if default is None:
+        return tuple(float(v) for v in f.vector(key, dim, unit="m"))
+    v = f.vector(key, dim, default=None, unit="m")
+    return tuple(default) if v is None else tuple(float(x) for x in v)
+
+
+def _shape(f: Fields, dim: int, *, allow_layer: bool) -> Shape:
+    kinds = ["box", "circle"] + (["layer"] if allow_layer else [])
+    present = [k for k in kinds if f.has(k)]
+    if len(present) != 1:
+        raise CaseError(f.file, f.path, f"exactly one shape key of {kinds}",
+                        sorted(k for k in f.table))
+    kind = present[0]
+    s = f.sub(kind)
+    if kind == "box":
+        shape: Shape = Box(_point(s, "center", dim),
+                           tuple(float(v) for v in s.vector("size", dim, positive=True, unit="m")))
+    elif kind == "circle":
+        if dim != 2:
+            raise s.error("", "a circle only in 2D cases")
+        shape = Circle(_point(s, "center", dim), s.number("radius", positive=True, unit="m"))
+    else:
+        amplitude = s.number("amplitude", 0.0, unit="m")
+        wavelength = s.number("wavelength", None, positive=True, unit="m")
+        wavelength = math.inf if wavelength is None else wavelength
+        shape = Layer(s.number("depth", positive=True, unit="m"), amplitude, wavelength,
+                      s.number("phase", 0.0, unit="rad"))
+    s.done()
+    return shape
+
+
+def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
+    """Read the ``[fluid]`` table of a case (see docs/fluid.md for every key)."""
+    f = fields
+    if dimension != 2:
+        raise CaseError(f.file, "case.dimension",
+                        "2 for a case with a [fluid] section (the fluid solver is 2D for now)",
+                        dimension)
+    domain = tuple(float(v) for v in f.vector("domain", dimension, positive=True, unit="m"))
+    res_raw = f.raw("resolution")
+    if (not isinstance(res_raw, list) or len(res_raw) != dimension
+            or not all(isinstance(r, int) and not isinstance(r, bool) and r >= 4
+                       for r in res_raw)):
+        raise f.error("resolution", f"an array of {dimension} integers >= 4 (cells per axis)",
+                      res_raw)
+    resolution = tuple(int(r) for r in res_raw)
+    dxs = [d / n for d, n in zip(domain, resolution, strict=True)]
+    if max(dxs) - min(dxs) > 1e-9 * max(dxs):
+        raise f.error("resolution", "square cells: domain[i] / resolution[i] equal on every axis "
+                      f"(cell sizes here {dxs})", res_raw)
+
+    walls = {s: "solid" for s in SIDES_2D}
+    wf = f.sub("walls", None)
+    if wf is not None:
+        for side in SIDES_2D:
+            walls[side] = wf.string(side, "solid", choices=WALL_KINDS)
+        wf.done()
+
+    lid = None
+    lf = f.sub("lid", None)
+    if lf is not None:
+        side = lf.string("side", "top", choices=SIDES_2D)
+        if walls[side] != "solid":
+            raise lf.error("side", f"a solid side (fluid.walls.{side} is {walls[side]!r})", side)
+        lid = Lid(side, lf.number("speed", unit="m/s"))
+        lf.done()
+
+    density = f.number("density", 1000.0, positive=True, unit="kg/m^3")
+    if f.has("kinematic_viscosity") and f.has("dynamic_viscosity"):
+        raise f.error("dynamic_viscosity", "only one of kinematic_viscosity and dynamic_viscosity",
+                      f.table["dynamic_viscosity"])
+    nu = f.number("kinematic_viscosity", 0.0, nonnegative=True, unit="m^2/s")
+    if f.has("dynamic_viscosity"):
+        nu = f.number("dynamic_viscosity", nonnegative=True, unit="Pa s") / density
+    no_slip = f.boolean("no_slip", nu > 0)
+
+    obstacles = tuple(_shape(o, dimension, allow_layer=False)
+                      for o in f.table_list("obstacles", []))
+
+    parts = []
+    for entry in f.table_list("initial", []):
+        subtract = entry.boolean("subtract", False)
+        parts.append(RegionPart(_shape(entry, dimension, allow_layer=True), subtract))
+        entry.done()
+    if parts and parts[0].subtract:
+        raise f.error("initial[0].subtract", "false for the first region part (nothing to "
+                      "subtract from)", True)
+
+    cfl = f.number("cfl", 1.0, positive=True)
+    cfl_limit = f.number("cfl_limit", max(2.0 * cfl, cfl + 1.0), positive=True)
+    if cfl_limit < cfl:
+        raise f.error("cfl_limit", f"a number >= fluid.cfl ({cfl})", cfl_limit)
+    redistance_every = f.integer("redistance_every", 1, minimum=1)
+    ptol = f.number("pressure_tolerance", 1e-6, positive=True)
+    min_vol = f.number("min_volume_fraction", 0.5, nonnegative=True)
+
+    prescribed = None
+    pf = f.sub("prescribed_velocity", None)
+    if pf is not None:
+        rf = pf.sub("rotation")
+        prescribed = Rotation(_point(rf, "center", dimension),
+                              rf.number("angular_velocity", unit="rad/s"))
+        rf.done()
+        pf.done()
+
+    particles = ParticleSpec()
+    pls = f.sub("particles", None)
+    if pls is not None:
+        particles = ParticleSpec(
+            enabled=pls.boolean("enabled", True),
+            per_cell=pls.integer("per_cell", 16, minimum=1),
+            band=pls.number("band", 3.0, positive=True, unit="cells"),
+            reseed_every=pls.integer("reseed_every", 20, minimum=1),
+            seed=pls.integer("seed", 12345, minimum=0),
+        )
+        pls.done()
+
+    output = OutputSpec()
+    of = f.sub("output", None)
+    if of is not None:
+        names = of.string_list("fields", ("u", "v", "phi"))
+        for i, name in enumerate(names):
+            if name not in OUTPUT_FIELDS:
+                raise CaseError(of.file, f"{of.field('fields')}[{i}]",
+                                f"one of {list(OUTPUT_FIELDS)}", name)
+        output = OutputSpec(tuple(names), of.number("field_every", None, positive=True, unit="s"),
+                            of.number("probe_x", None, nonnegative=True, unit="m"))
+        of.done()
+    f.done()
+    return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
+                     obstacles=obstacles, initial=tuple(parts), density=density,
+                     kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit,
+                     redistance_every=redistance_every, pressure_tolerance=ptol,
+                     min_volume_fraction=min_vol, prescribed_velocity=prescribed,
+                     particles=particles, output=output)
