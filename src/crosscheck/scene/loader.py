@@ -255,6 +255,11 @@ def _polygon(f: Fields) -> Polygon:
     pts = np.array([check_vector(p, 2, f.file, f"{field}[{i}]", unit="m")
                     for i, p in enumerate(raw)])
     f.done()
+    with np.errstate(all="ignore"):  # overflowing sizes are refused with the mass properties
+        return _convex_polygon(f, field, raw, pts)
+
+
+def _convex_polygon(f: Fields, field: str, raw: Any, pts: np.ndarray) -> Polygon:
     edges = np.roll(pts, -1, axis=0) - pts
     area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
     if abs(area2) < 1e-12:
@@ -291,6 +296,27 @@ def _mass_properties(shape: Any, density: float) -> Any:
     raise TypeError(f"no mass properties for {shape!r}")  # pragma: no cover
 
 
+def _checked_mass_properties(f: Fields, shape: Any, density: float, mass: float | None = None
+                             ) -> Any:
+    """Mass properties of the shape (scaled to ``mass`` if given), refused when floating point
+    cannot represent them: a size so large or small that the volume overflows or underflows."""
+    try:
+        with np.errstate(all="ignore"):
+            props = _mass_properties(shape, density)
+            if mass is not None:
+                props = massprops.with_mass(props, mass)
+            second = props.inertia if hasattr(props, "inertia") else props.moment
+            ok = (props.mass > 0 and np.all(np.isfinite([props.mass, *np.ravel(props.com),
+                                                          *np.ravel(second)])))
+    except (ValueError, ArithmeticError):
+        ok = False
+    if not ok:
+        raise f.error("shape", "a shape whose mass, centre of mass and inertia are finite and "
+                      "non-zero in floating point (sizes that neither overflow nor underflow)",
+                      f.table.get("shape"))
+    return props
+
+
 def _body(f: Fields, dimension: int, materials: dict[str, Material], base_dir: Path) -> Body:
     name = f.string("name")
     shape = _shape(f, dimension, base_dir)
@@ -300,12 +326,12 @@ def _body(f: Fields, dimension: int, materials: dict[str, Material], base_dir: P
                         "both" if f.has("mass") else "neither")
     if f.has("mass"):
         mass = f.number("mass", positive=True, unit="kg")
-        props = massprops.with_mass(_mass_properties(shape, 1.0), mass)
+        props = _checked_mass_properties(f, shape, 1.0, mass)
         mass_source = "given"
     else:
         density = f.number("density", positive=True,
                            unit="kg/m^3" if dimension == 3 else "kg/m^2")
-        props = _mass_properties(shape, density)
+        props = _checked_mass_properties(f, shape, density)
         mass = float(props.mass)
         mass_source = "density"
 
