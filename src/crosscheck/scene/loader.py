@@ -234,7 +234,10 @@ def _mesh(f: Fields, base_dir: Path) -> Mesh:
     rel = f.string("file")
     scale = f.number("scale", 1.0, positive=True)
     f.done()
-    path = (base_dir / rel).resolve()
+    try:
+        path = (base_dir / rel).resolve()
+    except (OSError, ValueError):  # e.g. an embedded NUL character
+        raise f.error("file", "a file path (relative to the case file)", rel) from None
     try:
         mesh = massprops.load_mesh(path)
         massprops.check_closed_volume(mesh)
