@@ -242,7 +242,9 @@ def _mesh(f: Fields, base_dir: Path) -> Mesh:
         mesh = massprops.load_mesh(path)
         massprops.check_closed_volume(mesh)
     except massprops.MeshError as exc:
-        raise CaseError(f.file, f.field("file"), str(exc), rel) from None
+        reason = exc.message.split(", expected")[0]  # the expectation is stated once, below
+        raise f.error("file", f"a mesh file that is {massprops.CLOSED_MESH_EXPECTED}",
+                      f"{path}: {reason}") from None
     vertices = np.asarray(mesh.vertices, float) * scale
     faces = np.asarray(mesh.faces, dtype=np.int64)
     vertices.setflags(write=False)
