@@ -382,13 +382,20 @@ def _inertia(f: Fields, dimension: int) -> np.ndarray:
         tensor = np.array([check_vector(r, 3, f.file, f"{field}[{i}]", unit="kg m^2")
                            for i, r in enumerate(raw)])
         scale = np.max(np.abs(tensor))
-        if not np.allclose(tensor, tensor.T, rtol=0, atol=1e-12 * max(scale, 1e-300)):
+        with np.errstate(over="ignore"):  # |a - b| of huge entries overflows: not symmetric
+            symmetric = np.allclose(tensor, tensor.T, rtol=0, atol=1e-12 * max(scale, 1e-300))
+        if not symmetric:
             raise CaseError(f.file, field, "a symmetric 3x3 tensor", raw)
-        tensor = 0.5 * (tensor + tensor.T)
+        tensor = 0.5 * tensor + 0.5 * tensor.T  # (a + b) / 2 would overflow near 1e308
     else:
         diag = check_vector(raw, 3, f.file, field, positive=True, unit="kg m^2")
         tensor = np.diag(diag)
-    moments = np.linalg.eigvalsh(tensor)
+    scale = np.max(np.abs(tensor))
+    if scale == 0:
+        raise CaseError(f.file, field, "a positive definite inertia tensor", raw)
+    # Eigenvalues of the tensor scaled to order one: LAPACK does not converge on entries near
+    # the overflow limit. The checks below are scale-free.
+    moments = np.linalg.eigvalsh(tensor / scale)
     if moments[0] <= 0:
         raise CaseError(f.file, field, "a positive definite inertia tensor", raw)
     # A rigid body's principal moments satisfy the triangle inequality I1 + I2 >= I3.
