@@ -414,9 +414,9 @@ def _orientation(f: Fields) -> np.ndarray:
         axis = sub.vector("axis", 3)
         angle = sub.number("angle", unit="rad")
         sub.done()
-        if np.linalg.norm(axis) < 1e-12:
+        if _safe_norm(axis) < 1e-12:
             raise CaseError(f.file, f"{field}.axis", "a non-zero axis", axis.tolist())
-        return axis_angle_to_quat(axis, angle)
+        return axis_angle_to_quat(axis / np.max(np.abs(axis)), angle)
     q = check_vector(raw, 4, f.file, field)
     norm = float(np.linalg.norm(q))
     if abs(norm - 1.0) > QUATERNION_UNIT_TOLERANCE:
@@ -424,6 +424,12 @@ def _orientation(f: Fields) -> np.ndarray:
                         f"a unit quaternion [w, x, y, z] (|q| within {QUATERNION_UNIT_TOLERANCE}"
                         " of 1) or { axis = [...], angle = radians }", f"|q| = {norm:.6g}")
     return q / norm
+
+
+def _safe_norm(v: np.ndarray) -> float:
+    """Euclidean norm without overflow (|v|^2 of components near 1e300 is inf)."""
+    biggest = float(np.max(np.abs(v)))
+    return 0.0 if biggest == 0 else biggest * float(np.linalg.norm(v / biggest))
 
 
 # -- effects, ground, reference, tolerances -------------------------------------------------------
@@ -492,10 +498,11 @@ def _effects(f: Fields, dimension: int, names: list[str], has_fluid: bool) -> Ef
 def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground:
     up = [0.0, 0.0, 1.0] if dimension == 3 else [0.0, 1.0]
     normal = f.vector("normal", dimension, up)
-    length = float(np.linalg.norm(normal))
-    if length < 1e-12:
+    if _safe_norm(normal) < 1e-12:
         raise f.error("normal", "a non-zero normal vector", normal.tolist())
-    ground = Ground(normal=normal / length, offset=f.number("offset", 0.0, unit="m"),
+    unit = normal / np.max(np.abs(normal))
+    unit = unit / np.linalg.norm(unit)
+    ground = Ground(normal=unit, offset=f.number("offset", 0.0, unit="m"),
                     material=_material_ref(f, materials))
     f.done()
     return ground
