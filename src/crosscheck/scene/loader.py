@@ -488,6 +488,7 @@ def _effects(f: Fields, dimension: int, names: list[str], has_fluid: bool) -> Ef
             torque = ld.vector("torque", 3, [0.0, 0.0, 0.0], unit="N m")
         else:
             torque = np.array([ld.number("torque", 0.0, unit="N m")])
+            torque.setflags(write=False)
         loads.append(Load(body=body, force=force, torque=torque))
         ld.done()
     f.done()
@@ -502,6 +503,7 @@ def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground
         raise f.error("normal", "a non-zero normal vector", normal.tolist())
     unit = normal / np.max(np.abs(normal))
     unit = unit / np.linalg.norm(unit)
+    unit.setflags(write=False)
     ground = Ground(normal=unit, offset=f.number("offset", 0.0, unit="m"),
                     material=_material_ref(f, materials))
     f.done()
