@@ -519,7 +519,7 @@ def _reference(f: Fields) -> Reference:
         engine=f.string("engine", None, choices=ENGINE_NAMES) if f.has("engine") else None,
         integrator=f.string("integrator", None) if f.has("integrator") else None,
         dt=f.number("dt", positive=True, unit="s") if f.has("dt") else None,
-        params=f.sub("params").table if f.has("params") else {},
+        params=_free_form(f, "params") if f.has("params") else {},
     )
     required = {"analytic": "solution", "table": "table", "fine-step": "dt", "engine": "engine"}
     if kind in required and getattr(ref, required[kind]) is None:
@@ -527,6 +527,28 @@ def _reference(f: Fields) -> Reference:
                         f"this field, required when reference.kind = {kind!r}")
     f.done()
     return ref
+
+
+def _free_form(f: Fields, key: str) -> dict[str, Any]:
+    """A table whose keys belong to someone else (solution parameters, engine options): its keys
+    are not checked here, but its values must still be finite numbers, strings, booleans, arrays
+    or tables (a NaN or a TOML date would only fail later, inside an engine or a JSON report)."""
+    table = f.sub(key).table
+    _check_plain(table, f.file, f.field(key))
+    return table
+
+
+def _check_plain(value: Any, file: Path, field: str) -> None:
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_plain(v, file, f"{field}.{k}")
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _check_plain(v, file, f"{field}[{i}]")
+    elif isinstance(value, float):
+        check_number(value, file, field)
+    elif not isinstance(value, str | int):  # bool is an int; dates and times are the rest
+        raise CaseError(file, field, "a number, string, boolean, array or table", value)
 
 
 def _tolerances(f: Fields) -> dict[str, Tolerance]:
@@ -555,6 +577,6 @@ def _engine_options(f: Fields) -> dict[str, dict[str, Any]]:
         if engine not in ENGINE_NAMES:
             raise f.error(engine, f"an engine name, one of {list(ENGINE_NAMES)}",
                           f"unknown key {engine!r}")
-        out[engine] = dict(f.sub(engine).table)
+        out[engine] = dict(_free_form(f, engine))
     f.done()
     return out
