@@ -560,6 +560,12 @@ def _tolerances(f: Fields) -> dict[str, Tolerance]:
             sub = Fields(value, field, f.file)
             default = sub.number("default", None, nonnegative=True)
             overrides = {k: sub.number(k, nonnegative=True) for k in value if k != "default"}
+            for key in overrides:
+                engine, dot, integrator = key.partition(".")
+                if dot and (engine not in ENGINE_NAMES or not integrator):
+                    raise sub.error(key, "default, an engine name, an integrator name or "
+                                    f"'engine.integrator' with an engine in {list(ENGINE_NAMES)}",
+                                    f"unknown key {key!r}")
             sub.done()
             if default is None and not overrides:
                 raise CaseError(f.file, field, "a limit, or a table with default and overrides")
