@@ -8,6 +8,7 @@ unknown keys (typos) are refused the same way everywhere.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 from crosscheck.errors import CaseError
 
 _MISSING = object()
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 
 
 class Fields:
@@ -41,6 +43,8 @@ class Fields:
     def field(self, key: str | int) -> str:
         if isinstance(key, int):
             return f"{self.path}[{key}]"
+        if not _BARE_KEY.fullmatch(key):  # written as TOML would: energy_drift."mujoco.euler"
+            key = '"' + key.replace("\\", "\\\\").replace('"', '\\"') + '"'
         return f"{self.path}.{key}" if self.path else key
 
     def error(self, key: str | int, expected: str, got: object = None) -> CaseError:
