@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from crosscheck.scene.loader import load_case
@@ -71,13 +72,16 @@ def run(args) -> int:
         print(json.dumps(scene_as_json(scene), indent=2))
         return 0
     console = Console()
-    console.print(f"[bold]{scene.name}[/bold] ({scene.dimension}D) — {scene.description}")
-    console.print(f"tags: {', '.join(scene.tags) or '-'}    file: {scene.source}")
+    # Everything the case file wrote is escaped: "[/]" in a description is text, not markup.
+    console.print(f"[bold]{escape(scene.name)}[/bold] ({scene.dimension}D) — "
+                  f"{escape(scene.description)}")
+    console.print(f"tags: {escape(', '.join(scene.tags)) or '-'}    "
+                  f"file: {escape(str(scene.source))}")
     r = scene.run
     console.print(f"run: duration {r.duration} s, dt {r.dt} s, sample every {r.sample_every} s; "
                   f"engines {', '.join(r.engines)}")
     for engine, names in r.integrators.items():
-        console.print(f"  {engine}: {', '.join(names)}")
+        console.print(f"  {engine}: {escape(', '.join(names))}")
     console.print(f"effects: {', '.join(scene.effects.names()) or 'none'}"
                   + (f"; gravity {scene.effects.gravity.tolist()}"
                      if scene.effects.gravity is not None else ""))
@@ -88,18 +92,18 @@ def run(args) -> int:
     for body in scene.bodies:
         d = body_summary(body)
         moments = d.get("principal_moments", [body.inertia[0, 0]])
-        table.add_row(body.name, body.shape.kind, f"{body.mass:.6g}", _vec(body.com),
+        table.add_row(escape(body.name), body.shape.kind, f"{body.mass:.6g}", _vec(body.com),
                       _vec(d["com_world"]), _vec(moments), _vec(body.position),
                       _vec(body.velocity), _vec(body.angular_velocity))
     console.print(table)
     ref = scene.reference
     console.print(f"reference: {ref.kind}"
-                  + "".join(f" {k}={v}" for k, v in (("solution", ref.solution),
+                  + "".join(f" {k}={escape(str(v))}" for k, v in (("solution", ref.solution),
                             ("table", ref.table), ("engine", ref.engine),
                             ("integrator", ref.integrator), ("dt", ref.dt)) if v is not None))
     for name, tol in scene.tolerances.items():
-        console.print(f"tolerance {name}: default {tol.default}"
-                      + "".join(f", {k} {v}" for k, v in tol.overrides.items()))
+        console.print(f"tolerance {escape(name)}: default {tol.default}"
+                      + "".join(f", {escape(k)} {v}" for k, v in tol.overrides.items()))
     return 0
 
 
