@@ -6,6 +6,7 @@ import argparse
 import json
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from crosscheck.errors import CaseError
@@ -39,10 +40,11 @@ def run(args) -> int:
         for col in ("file", "name", "dim", "tags", "engines"):
             table.add_column(col)
         for r in rows:
-            table.add_row(r["file"], r["name"], f"{r['dimension']}D", ", ".join(r["tags"]),
-                          ", ".join(r["engines"]))
+            # case-file text is escaped: a name or tag with "[...]" is text, not rich markup
+            table.add_row(escape(r["file"]), escape(r["name"]), f"{r['dimension']}D",
+                          escape(", ".join(r["tags"])), ", ".join(r["engines"]))
         console = Console()
         console.print(table)
         for b in broken:
-            console.print(f"[red]error:[/red] {b['error']}", highlight=False)
+            console.print(f"[red]error:[/red] {escape(b['error'])}", highlight=False)
     return 2 if broken else 0
