@@ -110,9 +110,19 @@ def quat_angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def sign_continuous(q: np.ndarray) -> np.ndarray:
     """Flip signs along axis 0 (time) so consecutive quaternions have a non-negative dot product."""
     q = np.array(q, float, copy=True)
-    for i in range(1, q.shape[0]):
-        dots = np.sum(q[i] * q[i - 1], axis=-1)
-        q[i][dots < 0] *= -1.0
+    if q.shape[0] < 2:
+        return q
+    # Vectorised (a per-sample Python loop cost more than stepping a cheap engine between
+    # samples). Sample i is flipped iff its raw dot with sample i-1, times the sign given to i-1,
+    # is negative: so its sign is the parity of the negative raw dots since the last zero (or NaN)
+    # dot, where the sequential rule restarts at +1.
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    neg = np.concatenate([np.zeros_like(dots[:1], dtype=int), (dots < 0).astype(int)])
+    restart = np.concatenate([np.ones_like(dots[:1], dtype=bool), ~((dots < 0) | (dots > 0))])
+    count = np.cumsum(neg, axis=0)
+    t = np.arange(q.shape[0]).reshape((-1,) + (1,) * (dots.ndim - 1))
+    last = np.maximum.accumulate(np.where(restart, t, 0), axis=0)
+    q[(count - np.take_along_axis(count, last, axis=0)) % 2 == 1] *= -1.0
     return q
 
 
