@@ -118,13 +118,22 @@ def backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, has_solid):
 
 
 @njit(cache=True, parallel=True)
-def advect(q, qoffx, qoffy, tox, toy, out, lo, hi, up, vp, dt, dx, lx, ly, solid, has_solid):
+def advect(q, qoffx, qoffy, tox, toy, out, lo, hi, active, fallback,
+           up, vp, dt, dx, lx, ly, solid, has_solid):
     """Semi-Lagrangian advection of ``q`` onto the grid points ``((i+tox)dx, (j+toy)dx)`` of
-    ``out``; ``lo``/``hi`` receive the local extrema of the interpolation stencil."""
+    ``out``; ``lo``/``hi`` receive the local extrema of the interpolation stencil. Points where
+    ``active`` is false are not traced and take ``fallback`` (far from the surface nothing there
+    can matter within one CFL-bounded step: the level set keeps its sign, air velocities are
+    rebuilt by extension)."""
     inv_dx = 1.0 / dx
     nx, ny = out.shape
     for i in prange(nx):
         for j in range(ny):
+            if not active[i, j]:
+                out[i, j] = fallback[i, j]
+                lo[i, j] = fallback[i, j]
+                hi[i, j] = fallback[i, j]
+                continue
             x = (i + tox) * dx
             y = (j + toy) * dx
             xb, yb = backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, has_solid)

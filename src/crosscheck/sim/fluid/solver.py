@@ -110,6 +110,9 @@ class FluidState:
         self.v = np.zeros((self.nx, self.ny + 1))
         self.up = K.empty_like_padded_u(self.u)
         self.vp = K.empty_like_padded_v(self.v)
+        self.zero_u = np.zeros(self.u.shape)
+        self.zero_v = np.zeros(self.v.shape)
+        self.all_active = np.ones((self.nx + 1, self.ny + 1), bool)
         self.ustate = np.zeros(self.u.shape, np.int8)
         self.vstate = np.zeros(self.v.shape, np.int8)
         self.p = np.zeros((self.nx, self.ny))   # physical pressure (Pa), warm start of the solve
@@ -182,10 +185,19 @@ class FluidState:
         args = (up, vp, dt, dx, self.lx, self.ly, self.solid, self.has_solid)
         mac = self.scheme.advection == "maccormack"
         if self.has_surface:
-            self.phi = self._advect(self.phi, K.OFF_PHI, (0.5, 0.5), args, mac, None)
+            # only the band can change sign or be read by the next steps (|u| dt <= cfl_limit dx)
+            band = self.band_cells * dx
+            act_phi = np.abs(self.phi) < band
+            act_u = LS.face_phi(self.phi, 0) < band
+            act_v = LS.face_phi(self.phi, 1) < band
+        else:
+            act_phi = act_u = act_v = self.all_active
+        if self.has_surface:
+            self.phi = self._advect(self.phi, K.OFF_PHI, (0.5, 0.5), args, mac, None,
+                                    act_phi, self.phi)
         if self.prescribed is None:
-            un = self._advect(up, K.OFF_UPAD, (0.0, 0.5), args, mac, "u")
-            vn = self._advect(vp, K.OFF_VPAD, (0.5, 0.0), args, mac, "v")
+            un = self._advect(up, K.OFF_UPAD, (0.0, 0.5), args, mac, "u", act_u, self.zero_u)
+            vn = self._advect(vp, K.OFF_VPAD, (0.5, 0.0), args, mac, "v", act_v, self.zero_v)
         else:
             un, vn = self.u, self.v
         if self.particles is not None:
@@ -253,11 +265,11 @@ class FluidState:
         self.last_iterations = its
         return {"iterations": its, "escaped": escaped}
 
-    def _advect(self, q, qoff, toff, args, mac, comp):
+    def _advect(self, q, qoff, toff, args, mac, comp, active, fallback):
         out = np.empty(self._target_shape(comp))
         lo = np.empty_like(out)
         hi = np.empty_like(out)
-        K.advect(q, qoff[0], qoff[1], toff[0], toff[1], out, lo, hi, *args)
+        K.advect(q, qoff[0], qoff[1], toff[0], toff[1], out, lo, hi, active, fallback, *args)
         if not mac:
             return out
         # MacCormack: trace the result forward again and correct by half the round-trip error
@@ -276,8 +288,8 @@ class FluidState:
         back = np.empty_like(out)
         lo2 = np.empty_like(out)
         hi2 = np.empty_like(out)
-        K.advect(fwdp, qoff[0], qoff[1], toff[0], toff[1], back, lo2, hi2, up, vp, -dt,
-                 *args[3:])
+        K.advect(fwdp, qoff[0], qoff[1], toff[0], toff[1], back, lo2, hi2, active, fallback,
+                 up, vp, -dt, *args[3:])
         res = np.empty_like(out)
         K.maccormack_combine(np.ascontiguousarray(q0), out, back, lo, hi, res)
         return res
@@ -365,7 +377,7 @@ def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None
     unconverged = 0
     n_samples = 0
 
-    def record(t: float, last_dt: float) -> None:
+    def record(t: float, last_dt: float, final: bool = False) -> None:
         nonlocal n_samples
         m = st.measure()
         m["dt"] = last_dt
@@ -373,7 +385,7 @@ def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None
         ts.append(t)
         for k, val in m.items():
             series.setdefault(k, []).append(val)
-        if n_samples % field_stride == 0:
+        if n_samples % field_stride == 0 or final:
             field_t.append(t)
             for k, arr in st.snapshot(spec.output.fields).items():
                 frames[k].append(arr)
@@ -418,9 +430,10 @@ def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None
         if st.has_surface and st.fluid_cells() < spec.min_volume_fraction * st.fluid_cells0:
             failure = {"time": t, "reason": "lost its fluid: fluid cells fell below "
                                             f"{spec.min_volume_fraction:g} of the initial count"}
-        if t >= next_sample - eps or failure is not None or t >= duration - eps:
+        final = failure is not None or t >= duration - eps
+        if t >= next_sample - eps or final:
             rec0 = time.perf_counter()
-            record(t, h)
+            record(t, h, final)   # the final state always has a field snapshot
             wall0 += time.perf_counter() - rec0   # recording is not stepping time
             if not math.isfinite(series["max_speed"][-1]) and failure is None:
                 failure = {"time": t, "reason": "non-finite velocity"}
