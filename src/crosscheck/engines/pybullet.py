@@ -1,0 +1,787 @@
+"""PyBullet adapter: one DIRECT client per run, every body built from the Scene.
+
+Model (see docs/engines.md, section PyBullet, for the measurements behind each choice)
+------------------------------------------------------------------------------------------
+* A 3D body is the base of its own ``createMultiBody``: the link frame is the declared body frame
+  (``basePosition`` / ``baseOrientation``), the inertial frame sits at ``Body.com`` with the
+  orientation of the principal axes ``V`` (``I_body = V diag(moments) V^T``, ``det V = +1``), and
+  the principal moments go in through ``changeDynamics(mass=m, localInertiaDiagonal=moments)``:
+  ``createMultiBody`` has no full-tensor argument. The mass is passed again on purpose: for a
+  maximal-coordinate body ``localInertiaDiagonal`` alone sets the mass to 0 (a static body).
+* No collision shape, and collision filter group and mask 0: nothing collides ("contact" is not
+  applicable until the contact issue).
+* Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
+  *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
+  ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
+* ``createMultiBody`` places the link frame, ``resetBasePositionAndOrientation`` the inertial frame
+  (ENGINES.md trap 2): the adapter places bodies with the former and restores the pose PyBullet
+  itself reported with the latter.
+
+Integrators (PyBullet's two kinds of body; both semi-implicit Euler on the velocities):
+
+* ``multibody`` (``useMaximalCoordinates=False``, PyBullet's default): Featherstone btMultiBody,
+  gyroscopic term explicit (a tumbling body gains energy, ENGINES.md trap 7).
+* ``maximal`` (``useMaximalCoordinates=True``): btRigidBody, gyroscopic term implicit (loses).
+
+Neutralised and read back into ``meta["effective"]``: damping (multibody default 0.04, trap 1),
+the multibody velocity clamp (``maxJointVelocity``, trap 5), sleeping, gravity, the time step and
+the process-global contact breaking threshold (trap 10). PyBullet's ``getDynamicsInfo`` does not
+return damping, activation state or the clamp, so the adapter measures them: one force-free probe
+step at 150 m/s and 150 rad/s must leave every velocity unchanged, else the run is a failure.
+
+2D scenes run in 3D in the x-y plane (y up):
+
+* ``multibody``: a fixed base with prismatic x, prismatic y and revolute z joints through the
+  centre of mass: the plane is exact; the joint coordinates are the centre of mass and the angle.
+* ``maximal``: a free rigid body with the in-plane state, projected back (no planar joint exists
+  for a maximal-coordinate body); it carries the isotropic inertia (I, I, I), so the gyroscopic
+  term vanishes and nothing pushes it out of the plane.
+
+Either way the out-of-plane drift is read from PyBullet and kept in ``extras``:
+``out_of_plane`` (T, N) the centre of mass' z (m), ``out_of_plane_tilt`` (T, N) the angle between
+the body z axis and the world z axis (rad), ``out_of_plane_omega`` (T, N) |(omega_x, omega_y)|.
+
+Springs, drag and loads are applied before every step from the state at the start of the step
+(``applyExternalForce`` / ``applyExternalTorque`` in WORLD_FRAME at the centre of mass; 2D
+multibody: generalised forces through ``TORQUE_CONTROL`` on the three joints). PyBullet then does
+``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the velocity for
+damping and drag. PyBullet clears applied forces after every step.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from crosscheck.engines.base import Capabilities, EngineBase, SamplingPlan, sampling_plan
+from crosscheck.errors import CaseError, EngineUnavailable
+from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
+from crosscheck.scene.model import Scene
+from crosscheck.state import Trajectory, TrajectoryRecorder
+
+try:  # a missing or broken pybullet makes this engine "not applicable", not an import error
+    import pybullet as _p
+except Exception:  # pragma: no cover
+    _p = None
+
+INTEGRATORS: tuple[str, ...] = ("multibody", "maximal")
+
+INTEGRATOR_NOTES = {
+    "multibody": "btMultiBody (Featherstone), semi-implicit Euler: v += h a(x_n, v_n), then "
+                 "x += h v_{n+1}; gyroscopic term explicit (a tumbling body gains energy); "
+                 "orientation by the exponential map, rotation per step capped at pi/4 rad",
+    "maximal": "btRigidBody (useMaximalCoordinates), semi-implicit Euler; gyroscopic term "
+               "implicit (one Newton step: a tumbling body loses energy); orientation by the "
+               "exponential map, rotation per step capped at pi/4 rad",
+}
+
+# Raised far above any physical speed: PyBullet clamps every multibody velocity component to
+# maxJointVelocity (default 100) without warning. Finite so it stays plain JSON in meta.
+MAX_COORDINATE_VELOCITY = 1e30
+# Bullet's own default (gContactBreakingThreshold). The value is global to the process and
+# survives a new connection (ENGINES.md trap 10): set on every run so no earlier run leaks in.
+CONTACT_BREAKING_THRESHOLD = 0.02
+# Bullet's btTransformUtil / btMultiBody cap the rotation integrated in one step at
+# ANGULAR_MOTION_THRESHOLD = pi/4 while keeping the velocity: faster spins rotate too little.
+MAX_ROTATION_PER_STEP = 0.25 * math.pi
+# The force-free probe step: above the default clamp of 100 per component.
+PROBE_SPEED = 150.0
+PROBE_SPIN = 150.0
+# Relative velocity change the probe tolerates: round-off of one step is ~1e-15; the default
+# damping would show 0.04 * 151 * dt (6e-3 at dt = 1e-3), the clamp a third.
+PROBE_TOLERANCE = 1e-9
+
+# Engine options a case may pin in [engine_options.pybullet]: name -> (check, default, meaning).
+OPTIONS: dict[str, tuple[str, Any]] = {
+    "solver_iterations": ("a positive integer", None),
+}
+
+_SHAPES = ("sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon")
+
+
+def engine_options(scene: Scene) -> dict[str, Any]:
+    """The case's [engine_options.pybullet] checked; unknown keys or bad values are case errors."""
+    given = dict(scene.engine_options.get("pybullet", {}))
+    out: dict[str, Any] = {key: default for key, (_, default) in OPTIONS.items()}
+    for key, value in given.items():
+        field = f"engine_options.pybullet.{key}"
+        if key not in OPTIONS:
+            raise CaseError(scene.source, field,
+                            f"one of the PyBullet adapter's options {sorted(OPTIONS)}",
+                            f"unknown option {key!r}")
+        if key == "solver_iterations":
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise CaseError(scene.source, field, OPTIONS[key][0], value)
+        out[key] = value
+    return out
+
+
+def _xyzw(q_wxyz: np.ndarray) -> list[float]:
+    q = np.asarray(q_wxyz, float)
+    return [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+
+
+def _wxyz(q_xyzw: np.ndarray) -> np.ndarray:
+    q = np.asarray(q_xyzw, float)
+    return q[..., [3, 0, 1, 2]]
+
+
+def principal_axes(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(moments, V) with inertia = V diag(moments) V^T and V a proper rotation (det +1)."""
+    moments, axes = np.linalg.eigh(np.asarray(inertia, float))
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1.0
+    return moments, axes
+
+
+def _unwrap_with_rate(raw: np.ndarray, omega: np.ndarray, t: np.ndarray,
+                      first: np.ndarray) -> np.ndarray:
+    """Unwrap (T, N) angles in (-pi, pi] using the angular velocity to predict each increment.
+
+    np.unwrap assumes less than half a turn between samples; a fast spin sampled coarsely turns
+    more. The prediction theta_{i-1} + (omega_{i-1} + omega_i)/2 dt picks the right turn as long
+    as it is within half a turn of the truth. ``first`` is the angle sample 0 should be nearest.
+    """
+    out = np.empty_like(raw)
+    if len(raw) == 0:
+        return out
+    two_pi = 2.0 * math.pi
+    out[0] = raw[0] + two_pi * np.round((first - raw[0]) / two_pi)
+    for i in range(1, len(raw)):
+        guess = out[i - 1] + 0.5 * (omega[i - 1] + omega[i]) * (t[i] - t[i - 1])
+        out[i] = raw[i] + two_pi * np.round((guess - raw[i]) / two_pi)
+    return out
+
+
+@dataclass
+class _BodyMap:
+    """How one scene body sits in the PyBullet world."""
+
+    uid: int
+    moments: np.ndarray  # principal moments passed to localInertiaDiagonal
+    q_axes: np.ndarray  # (4,) w,x,y,z of V: inertial frame in the body frame
+    com3: np.ndarray  # (3,) centre of mass in the body frame (2D: z = 0)
+
+
+class _Forces:
+    """Springs, drag and loads of a scene, evaluated from the state at the start of a step.
+
+    Works on 3D arrays for both dimensions (2D states are embedded with z = 0): ``rot`` maps the
+    stored attachment offsets (``offsets[i]``, relative to the centre of mass) into the world.
+    """
+
+    def __init__(self, scene: Scene, local_offset):
+        self.n = len(scene.bodies)
+        eff = scene.effects
+        self.springs = []
+        for s in eff.springs:
+            ra = local_offset(s.body_a, s.attach_a)
+            if s.body_b is None:
+                anchor = np.zeros(3)
+                anchor[: scene.dimension] = s.attach_b
+                rb = None
+            else:
+                anchor = None
+                rb = local_offset(s.body_b, s.attach_b)
+            self.springs.append((s.body_a, ra, s.body_b, rb, anchor, float(s.stiffness),
+                                 float(s.damping), float(s.rest_length)))
+        self.lin = np.zeros(self.n)
+        self.ang = np.zeros(self.n)
+        for d in eff.drag:
+            for b in d.bodies:
+                self.lin[b] += d.linear
+                self.ang[b] += d.angular
+        self.force0 = np.zeros((self.n, 3))
+        self.torque0 = np.zeros((self.n, 3))
+        for ld in eff.loads:
+            self.force0[ld.body, : scene.dimension] += ld.force
+            if scene.dimension == 3:
+                self.torque0[ld.body] += ld.torque
+            else:
+                self.torque0[ld.body, 2] += ld.torque[0]
+        self.active = bool(eff.springs or eff.drag or eff.loads)
+        self.needs_state = bool(eff.springs or eff.drag)
+
+    def __call__(self, com, rot, vel, omega) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) forces at the centres of mass and (N, 3) torques, world frame."""
+        force = self.force0.copy()
+        torque = self.torque0.copy()
+        if self.n and (self.lin.any() or self.ang.any()):
+            force -= self.lin[:, None] * vel
+            torque -= self.ang[:, None] * omega
+        for a, ra, b, rb, anchor, k, c, l0 in self.springs:
+            ra_w = rot[a] @ ra
+            pa = com[a] + ra_w
+            va = vel[a] + np.cross(omega[a], ra_w)
+            if b is None:
+                pb, vb, rb_w = anchor, np.zeros(3), None
+            else:
+                rb_w = rot[b] @ rb
+                pb = com[b] + rb_w
+                vb = vel[b] + np.cross(omega[b], rb_w)
+            d = pa - pb
+            length = math.sqrt(float(d @ d))
+            if length == 0.0:  # no direction: the spring (rest length 0 here) exerts nothing
+                continue
+            e = d / length
+            f = -(k * (length - l0) + c * float((va - vb) @ e)) * e
+            force[a] += f
+            torque[a] += np.cross(ra_w, f)
+            if b is not None:
+                force[b] -= f
+                torque[b] -= np.cross(rb_w, f)
+        return force, torque
+
+
+class PybulletModel:
+    """One PyBullet DIRECT client holding one Scene, with the state conversions.
+
+    Build it, ``probe()`` once (measures what PyBullet does not report), ``set_initial_state()``,
+    then ``advance(n)`` and ``read()``; always ``close()``.
+    """
+
+    def __init__(self, scene: Scene, integrator: str, dt: float,
+                 options: dict[str, Any] | None = None):
+        if _p is None:  # pragma: no cover
+            raise ImportError("pybullet is not installed")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown PyBullet integrator {integrator!r}; known: {INTEGRATORS}")
+        self.scene = scene
+        self.integrator = integrator
+        self.maximal = integrator == "maximal"
+        self.dt = float(dt)
+        self.dim = scene.dimension
+        self.planar_joints = self.dim == 2 and not self.maximal
+        self.options = engine_options(scene) if options is None else options
+        self.cid = _p.connect(_p.DIRECT)
+        if self.cid < 0:  # pragma: no cover
+            raise RuntimeError("pybullet could not open a DIRECT client")
+        try:
+            self._configure()
+            self._build()
+            self.forces = _Forces(scene, self._local_offset)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- model ----------------------------------------------------------------------------
+    def close(self) -> None:
+        if self.cid is not None and self.cid >= 0:
+            try:
+                _p.disconnect(physicsClientId=self.cid)
+            finally:
+                self.cid = None
+
+    def _configure(self) -> None:
+        kw: dict[str, Any] = dict(fixedTimeStep=self.dt, numSubSteps=0,
+                                  contactBreakingThreshold=CONTACT_BREAKING_THRESHOLD)
+        if self.options.get("solver_iterations") is not None:
+            kw["numSolverIterations"] = int(self.options["solver_iterations"])
+        _p.setPhysicsEngineParameter(physicsClientId=self.cid, **kw)
+        # Gravity stays 0 until the probe step is done; set_initial_state sets the scene's.
+        _p.setGravity(0.0, 0.0, 0.0, physicsClientId=self.cid)
+
+    def _body_frame(self, body) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(position, quaternion, com, inertia) of a body as a 3D body; 2D: embedded at z = 0."""
+        if self.dim == 3:
+            return (np.asarray(body.position, float), np.asarray(body.orientation, float),
+                    np.asarray(body.com, float), np.asarray(body.inertia, float))
+        half = 0.5 * body.angle
+        # Isotropic inertia: only I_zz acts on in-plane motion, and no gyroscopic term can tip
+        # a free (maximal) body out of the plane.
+        return (np.array([body.position[0], body.position[1], 0.0]),
+                np.array([math.cos(half), 0.0, 0.0, math.sin(half)]),
+                np.array([body.com[0], body.com[1], 0.0]), np.eye(3) * body.moment)
+
+    def _neutralise(self, uid: int, links: tuple[int, ...]) -> None:
+        """Damping 0, no velocity clamp, no sleeping, no collisions; joint damping 0 on links.
+
+        Two kinds of call on purpose: PyBullet's body-wide setters (damping, activation state,
+        maxJointVelocity) overwrite the command's link index with -1, so a link's mass or joint
+        damping passed in the same call would silently land on the base.
+        """
+        cid = self.cid
+        _p.changeDynamics(uid, -1, linearDamping=0.0, angularDamping=0.0,
+                          maxJointVelocity=MAX_COORDINATE_VELOCITY,
+                          activationState=_p.ACTIVATION_STATE_DISABLE_SLEEPING,
+                          physicsClientId=cid)
+        _p.setCollisionFilterGroupMask(uid, -1, 0, 0, physicsClientId=cid)
+        for link in links:
+            _p.changeDynamics(uid, link, jointDamping=0.0, physicsClientId=cid)
+            _p.setCollisionFilterGroupMask(uid, link, 0, 0, physicsClientId=cid)
+
+    def _set_mass(self, uid: int, link: int, mass: float, moments: np.ndarray) -> None:
+        # The mass goes with the inertia: for a maximal-coordinate body localInertiaDiagonal
+        # alone sets the mass to 0 (a static body). Nothing body-wide in this call (see above).
+        _p.changeDynamics(uid, link, mass=float(mass),
+                          localInertiaDiagonal=[float(x) for x in moments],
+                          physicsClientId=self.cid)
+
+    def _build(self) -> None:
+        cid = self.cid
+        self.bodies: list[_BodyMap] = []
+        for body in self.scene.bodies:
+            pos, quat, com, inertia = self._body_frame(body)
+            moments, axes = principal_axes(inertia)
+            if self.dim == 2:
+                axes = np.eye(3)  # isotropic: the body axes are principal
+                moments = np.full(3, body.moment)
+            q_axes = matrix_to_quat(axes)
+            if self.planar_joints:
+                uid = _p.createMultiBody(
+                    baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                    basePosition=[0.0, 0.0, 0.0], baseOrientation=[0.0, 0.0, 0.0, 1.0],
+                    linkMasses=[0.0, 0.0, float(body.mass)],
+                    linkCollisionShapeIndices=[-1, -1, -1], linkVisualShapeIndices=[-1, -1, -1],
+                    linkPositions=[[0.0, 0.0, 0.0]] * 3,
+                    linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * 3,
+                    linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 3,
+                    linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * 3,
+                    # parent 0 is the base, k is link k-1: a chain x -> y -> angle
+                    linkParentIndices=[0, 1, 2],
+                    linkJointTypes=[_p.JOINT_PRISMATIC, _p.JOINT_PRISMATIC, _p.JOINT_REVOLUTE],
+                    linkJointAxis=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                    physicsClientId=cid)
+                self._set_mass(uid, 2, body.mass, moments)
+                self._neutralise(uid, (0, 1, 2))
+                # Every createMultiBody joint carries a velocity motor: switch it off.
+                _p.setJointMotorControlArray(uid, [0, 1, 2], _p.VELOCITY_CONTROL,
+                                             forces=[0.0, 0.0, 0.0], physicsClientId=cid)
+            else:
+                uid = _p.createMultiBody(
+                    baseMass=float(body.mass), baseCollisionShapeIndex=-1,
+                    baseVisualShapeIndex=-1, basePosition=pos.tolist(),
+                    baseOrientation=_xyzw(quat), baseInertialFramePosition=com.tolist(),
+                    baseInertialFrameOrientation=_xyzw(q_axes),
+                    useMaximalCoordinates=self.maximal, physicsClientId=cid)
+                self._set_mass(uid, -1, body.mass, moments)
+                self._neutralise(uid, ())
+            self.bodies.append(_BodyMap(uid=uid, moments=moments, q_axes=q_axes, com3=com))
+        self._q_axes = np.array([b.q_axes for b in self.bodies]).reshape(-1, 4)
+        self._com3 = np.array([b.com3 for b in self.bodies]).reshape(-1, 3)
+
+    def _local_offset(self, body_index: int, point) -> np.ndarray:
+        """A body-frame point relative to the centre of mass, in the frame ``read_raw`` rotates.
+
+        3D bodies: the inertial (principal-axes) frame, whose rotation PyBullet reports. 2D: the
+        body frame itself (its rotation is the joint angle, or the free body's quaternion).
+        """
+        b = self.bodies[body_index]
+        p3 = np.zeros(3)
+        p3[: self.dim] = point
+        rel = p3 - b.com3
+        return quat_to_matrix(b.q_axes).T @ rel
+
+    # -- state ----------------------------------------------------------------------------
+    def set_initial_state(self, poses: list | None = None) -> None:
+        """Write the scene's t = 0 velocities (and, after a probe, the t = 0 poses) and gravity.
+
+        ``poses``: the (position, orientation) PyBullet reported for each base right after
+        building, i.e. the inertial frame; ``resetBasePositionAndOrientation`` takes exactly
+        that frame (trap 2).
+        """
+        cid = self.cid
+        for i, (b, body) in enumerate(zip(self.bodies, self.scene.bodies, strict=True)):
+            if self.planar_joints:
+                com = body.com_world()
+                for j, (q, qd) in enumerate(((com[0], body.velocity[0]),
+                                             (com[1], body.velocity[1]),
+                                             (body.angle, body.angular_velocity[0]))):
+                    _p.resetJointState(b.uid, j, float(q), float(qd), physicsClientId=cid)
+                continue
+            if poses is not None:
+                _p.resetBasePositionAndOrientation(b.uid, poses[i][0], poses[i][1],
+                                                   physicsClientId=cid)
+            if self.dim == 3:
+                v = [float(x) for x in body.velocity]
+                w = [float(x) for x in body.angular_velocity]
+            else:
+                v = [float(body.velocity[0]), float(body.velocity[1]), 0.0]
+                w = [0.0, 0.0, float(body.angular_velocity[0])]
+            _p.resetBaseVelocity(b.uid, v, w, physicsClientId=cid)
+        g = self.scene.effects.gravity_vector(self.dim)
+        g3 = [float(g[0]), float(g[1]), float(g[2]) if self.dim == 3 else 0.0]
+        _p.setGravity(*g3, physicsClientId=cid)
+
+    def base_poses(self) -> list:
+        return [_p.getBasePositionAndOrientation(b.uid, physicsClientId=self.cid)
+                for b in self.bodies]
+
+    def probe(self) -> dict[str, Any]:
+        """One force-free step at high speed: every velocity must come out unchanged.
+
+        Measures what PyBullet's API does not report back (damping, the velocity clamp, joint
+        motors and joint damping of the planar chain). Leaves the bodies to be reset by
+        ``set_initial_state(poses)``; call it before gravity is set (it is 0 after building).
+        """
+        cid = self.cid
+        before = []
+        for b in self.bodies:
+            if self.planar_joints:
+                qd = [PROBE_SPEED, -PROBE_SPEED, PROBE_SPIN]
+                for j in range(3):
+                    _p.resetJointState(b.uid, j, 0.0, qd[j], physicsClientId=cid)
+                before.append(np.array(qd))
+            else:
+                _, orn = _p.getBasePositionAndOrientation(b.uid, physicsClientId=cid)
+                r = quat_to_matrix(_wxyz(orn))
+                # Components above the clamp in the base frame, where PyBullet clamps; the spin
+                # about a principal axis, so no gyroscopic term changes it.
+                v = r @ np.array([PROBE_SPEED, -PROBE_SPEED, PROBE_SPEED])
+                w = r @ np.array([0.0, 0.0, PROBE_SPIN])
+                _p.resetBaseVelocity(b.uid, v.tolist(), w.tolist(), physicsClientId=cid)
+                before.append(np.concatenate([v, w]))
+        _p.stepSimulation(physicsClientId=cid)
+        lin, ang = [], []
+        for b, v0 in zip(self.bodies, before, strict=True):
+            if self.planar_joints:
+                st = _p.getJointStates(b.uid, [0, 1, 2], physicsClientId=cid)
+                v1 = np.array([s[1] for s in st])
+                lin.append(np.linalg.norm(v1[:2] - v0[:2]) / np.linalg.norm(v0[:2]))
+                ang.append(abs(v1[2] - v0[2]) / abs(v0[2]))
+            else:
+                vv, ww = _p.getBaseVelocity(b.uid, physicsClientId=cid)
+                lin.append(np.linalg.norm(np.subtract(vv, v0[:3])) / np.linalg.norm(v0[:3]))
+                ang.append(np.linalg.norm(np.subtract(ww, v0[3:])) / np.linalg.norm(v0[3:]))
+        worst_lin = float(max(lin, default=0.0))
+        worst_ang = float(max(ang, default=0.0))
+        return {
+            "what": "one force-free step at dt with every velocity above the default clamp",
+            "linear_speed_per_component": PROBE_SPEED,
+            "angular_speed": PROBE_SPIN,
+            "max_relative_change_linear": worst_lin,
+            "max_relative_change_angular": worst_ang,
+            "neutral": bool(worst_lin <= PROBE_TOLERANCE and worst_ang <= PROBE_TOLERANCE),
+        }
+
+    def read_raw(self) -> list[float]:
+        """The current state as one flat row per body (cheap: recorded, converted later).
+
+        3D / 2D maximal: COM (3), inertial-frame quaternion x,y,z,w (4), COM velocity (3),
+        angular velocity (3). 2D multibody: joint positions (3), joint velocities (3), link COM
+        (3), link orientation x,y,z,w (4), link angular velocity (3).
+        """
+        cid = self.cid
+        row: list[float] = []
+        if self.planar_joints:
+            for b in self.bodies:
+                st = _p.getJointStates(b.uid, [0, 1, 2], physicsClientId=cid)
+                ls = _p.getLinkState(b.uid, 2, computeLinkVelocity=1,
+                                     computeForwardKinematics=1, physicsClientId=cid)
+                row += [st[0][0], st[1][0], st[2][0], st[0][1], st[1][1], st[2][1]]
+                row += list(ls[0]) + list(ls[1]) + list(ls[7])
+            return row
+        for b in self.bodies:
+            pos, orn = _p.getBasePositionAndOrientation(b.uid, physicsClientId=cid)
+            v, w = _p.getBaseVelocity(b.uid, physicsClientId=cid)
+            row += list(pos) + list(orn) + list(v) + list(w)
+        return row
+
+    @property
+    def row_width(self) -> int:
+        return 16 if self.planar_joints else 13
+
+    def convert(self, raw: np.ndarray, t: np.ndarray) -> tuple[tuple[np.ndarray, ...],
+                                                                 dict[str, np.ndarray]]:
+        """(T, N * width) raw rows -> (com, rot, vel, omega) in crosscheck's convention, extras."""
+        n = len(self.bodies)
+        raw = np.asarray(raw, float).reshape(len(raw), n, self.row_width)
+        if self.planar_joints:
+            com = raw[..., 0:2].copy()
+            angle = raw[..., 2].copy()
+            vel = raw[..., 3:5].copy()
+            omega = raw[..., 5].copy()
+            z = raw[..., 8]
+            q_link = _wxyz(raw[..., 9:13])
+            w3 = raw[..., 13:16]
+            return (com, angle, vel, omega), self._out_of_plane(z, q_link, w3)
+        com3 = raw[..., 0:3]
+        q_in = _wxyz(raw[..., 3:7])
+        v3 = raw[..., 7:10]
+        w3 = raw[..., 10:13]
+        # Inertial frame -> declared body frame: R_in = R_body V, so q_body = q_in conj(q_V).
+        q_body = quat_mul(q_in, quat_conj(self._q_axes)[None])
+        q_body /= np.linalg.norm(q_body, axis=-1, keepdims=True)
+        if self.dim == 3:
+            if len(q_body):
+                # Same sign as the scene at t = 0, so sign_continuous keeps the scene's sign.
+                ref = np.array([b.orientation for b in self.scene.bodies])
+                flip = np.sum(q_body[0] * ref, axis=-1) < 0
+                q_body[:, flip] *= -1.0
+            return (com3.copy(), q_body, v3.copy(), w3.copy()), {}
+        r = quat_to_matrix(q_body)
+        raw_angle = np.arctan2(r[..., 1, 0], r[..., 0, 0])
+        first = np.array([b.angle for b in self.scene.bodies])
+        angle = _unwrap_with_rate(raw_angle, w3[..., 2], t, first)
+        extras = self._out_of_plane(com3[..., 2], q_body, w3)
+        return (com3[..., :2].copy(), angle, v3[..., :2].copy(), w3[..., 2].copy()), extras
+
+    @staticmethod
+    def _out_of_plane(z, q_wxyz, w3) -> dict[str, np.ndarray]:
+        r = quat_to_matrix(q_wxyz)
+        tilt = np.arctan2(np.hypot(r[..., 0, 2], r[..., 1, 2]), r[..., 2, 2])
+        return {"out_of_plane": np.asarray(z, float).copy(),
+                "out_of_plane_tilt": tilt,
+                "out_of_plane_omega": np.hypot(w3[..., 0], w3[..., 1])}
+
+    # -- stepping -------------------------------------------------------------------------
+    def _state_for_forces(self):
+        cid = self.cid
+        n = len(self.bodies)
+        com = np.zeros((n, 3))
+        vel = np.zeros((n, 3))
+        omega = np.zeros((n, 3))
+        rot = np.zeros((n, 3, 3))
+        for i, b in enumerate(self.bodies):
+            if self.planar_joints:
+                st = _p.getJointStates(b.uid, [0, 1, 2], physicsClientId=cid)
+                th = st[2][0]
+                c, s = math.cos(th), math.sin(th)
+                com[i, :2] = st[0][0], st[1][0]
+                vel[i, :2] = st[0][1], st[1][1]
+                omega[i, 2] = st[2][1]
+                rot[i] = ((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0))
+            else:
+                pos, orn = _p.getBasePositionAndOrientation(b.uid, physicsClientId=cid)
+                v, w = _p.getBaseVelocity(b.uid, physicsClientId=cid)
+                com[i], vel[i], omega[i] = pos, v, w
+                rot[i] = quat_to_matrix(_wxyz(orn))
+        return com, rot, vel, omega
+
+    def _apply_forces(self) -> None:
+        cid = self.cid
+        force, torque = self.forces(*self._state_for_forces())
+        for i, b in enumerate(self.bodies):
+            if self.planar_joints:
+                # Joint axes through the centre of mass: the generalised forces are F_x, F_y and
+                # the torque about the centre of mass.
+                _p.setJointMotorControlArray(
+                    b.uid, [0, 1, 2], _p.TORQUE_CONTROL,
+                    forces=[float(force[i, 0]), float(force[i, 1]), float(torque[i, 2])],
+                    physicsClientId=cid)
+            else:
+                pos, _ = _p.getBasePositionAndOrientation(b.uid, physicsClientId=cid)
+                # At the centre of mass PyBullet itself reports: its lever arm is exactly zero.
+                _p.applyExternalForce(b.uid, -1, force[i].tolist(), pos, _p.WORLD_FRAME,
+                                      physicsClientId=cid)
+                _p.applyExternalTorque(b.uid, -1, torque[i].tolist(), _p.WORLD_FRAME,
+                                       physicsClientId=cid)
+
+    def advance(self, nsteps: int) -> None:
+        step, cid = _p.stepSimulation, self.cid
+        if not self.forces.active:
+            for _ in range(nsteps):
+                step(physicsClientId=cid)
+            return
+        apply = self._apply_forces
+        for _ in range(nsteps):
+            apply()
+            step(physicsClientId=cid)
+
+    # -- read back ------------------------------------------------------------------------
+    def effective(self) -> tuple[dict[str, Any], list[str]]:
+        """Settings read back from PyBullet, and the mismatches with what the scene needs."""
+        cid = self.cid
+        problems: list[str] = []
+        params = _p.getPhysicsEngineParameters(physicsClientId=cid)
+        gravity = [params["gravityAccelerationX"], params["gravityAccelerationY"],
+                   params["gravityAccelerationZ"]]
+        g = self.scene.effects.gravity_vector(self.dim)
+        want_g = [float(g[0]), float(g[1]), float(g[2]) if self.dim == 3 else 0.0]
+        if gravity != want_g:
+            problems.append(f"gravity read back {gravity}, scene has {want_g}")
+        if params["fixedTimeStep"] != self.dt:
+            problems.append(f"time step read back {params['fixedTimeStep']}, asked {self.dt}")
+        if params["numSubSteps"] != 0:
+            problems.append(f"numSubSteps read back {params['numSubSteps']}, asked 0")
+        bodies = []
+        for b, body in zip(self.bodies, self.scene.bodies, strict=True):
+            link = 2 if self.planar_joints else -1
+            info = _p.getDynamicsInfo(b.uid, link, physicsClientId=cid)
+            mass, diag = info[0], list(info[2])
+            entry: dict[str, Any] = {"name": body.name, "mass": mass,
+                                     "principal_moments": diag}
+            if mass != float(body.mass):
+                problems.append(f"body {body.name!r}: mass read back {mass}, scene {body.mass}")
+            if np.max(np.abs(np.subtract(diag, b.moments))) > 1e-15 * np.max(b.moments):
+                problems.append(f"body {body.name!r}: principal moments read back {diag}, "
+                                f"asked {b.moments.tolist()}")
+            if self.planar_joints:
+                entry["joints"] = "prismatic x, prismatic y, revolute z through the COM"
+                base_mass = _p.getDynamicsInfo(b.uid, -1, physicsClientId=cid)[0]
+                entry["base_mass"] = base_mass
+                if base_mass != 0.0:
+                    problems.append(f"body {body.name!r}: the planar chain's base has mass "
+                                    f"{base_mass}; it must be fixed (0)")
+                joints = [_p.getJointInfo(b.uid, j, physicsClientId=cid) for j in range(3)]
+                entry["joint_damping"] = [j[6] for j in joints]
+                entry["joint_friction"] = [j[7] for j in joints]
+                entry["joint_limits"] = [[j[8], j[9]] for j in joints]
+                if any(j[6] != 0.0 or j[7] != 0.0 for j in joints):
+                    problems.append(f"body {body.name!r}: joint damping or friction not zero")
+                if any(j[8] <= j[9] for j in joints):
+                    problems.append(f"body {body.name!r}: a joint has limits")
+            elif not self.maximal:
+                # Multibody only: for a maximal-coordinate body PyBullet leaves these fields
+                # unset (garbage); the round trip of the state checks its inertial frame.
+                entry["inertial_frame_position"] = list(info[3])
+                entry["inertial_frame_orientation_xyzw"] = list(info[4])
+                if np.max(np.abs(np.subtract(info[3], b.com3))) > 1e-15 * (
+                        1.0 + np.max(np.abs(b.com3))):
+                    problems.append(f"body {body.name!r}: inertial frame position read back "
+                                    f"{list(info[3])}, asked {b.com3.tolist()}")
+            bodies.append(entry)
+        return {
+            "coordinates": self.integrator,
+            "planar": (None if self.dim == 3 else
+                       "prismatic x, prismatic y, revolute z joints (exact plane)"
+                       if self.planar_joints else
+                       "free 3D rigid body, projected; drift in extras out_of_plane*"),
+            "gravity": gravity,
+            "fixed_time_step": params["fixedTimeStep"],
+            "num_sub_steps": params["numSubSteps"],
+            "num_solver_iterations": params["numSolverIterations"],
+            "bodies": bodies,
+            "damping": {"set": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
+                        "readable": False, "checked_by": "probe"},
+            "max_joint_velocity": {"set": MAX_COORDINATE_VELOCITY, "readable": False,
+                                   "checked_by": "probe"},
+            "sleeping": {"set": "ACTIVATION_STATE_DISABLE_SLEEPING", "readable": False},
+            "contact_breaking_threshold": {"set": CONTACT_BREAKING_THRESHOLD, "readable": False,
+                                           "note": "global to the process (ENGINES.md trap 10)"},
+            "collisions": "none: no collision shapes, collision filter group and mask 0",
+            "max_rotation_per_step": MAX_ROTATION_PER_STEP,
+            "forces": ("none" if not self.forces.active else
+                       "TORQUE_CONTROL generalised forces per step from the start-of-step state"
+                       if self.planar_joints else
+                       "applyExternalForce/Torque WORLD_FRAME at the COM per step from the "
+                       "start-of-step state"),
+            "options": dict(self.options),
+        }, problems
+
+
+class PybulletEngine(EngineBase):
+    name = "pybullet"
+
+    def capabilities(self) -> Capabilities:
+        return Capabilities(
+            dimensions=frozenset({2, 3}),
+            shapes=frozenset(_SHAPES),
+            effects=frozenset({"gravity", "springs", "drag", "loads"}),
+            integrators=INTEGRATORS,
+            notes=dict(INTEGRATOR_NOTES),
+        )
+
+    def version(self) -> str:
+        if _p is None:  # pragma: no cover
+            return "not installed"
+        try:
+            dist = importlib.metadata.version("pybullet")
+        except importlib.metadata.PackageNotFoundError:  # pragma: no cover
+            dist = "unknown"
+        return f"{dist} (API {_p.getAPIVersion()})"
+
+    def not_applicable(self, scene: Scene, integrator: str) -> str | None:
+        if _p is None:  # pragma: no cover
+            return "the pybullet package is not installed"
+        if scene.effects.fluid or scene.fluid is not None:
+            return "PyBullet has no grid fluid"
+        if scene.effects.contact:
+            return "contact is not mapped yet (reserved for the contact issue)"
+        reason = super().not_applicable(scene, integrator)
+        if reason is None:
+            engine_options(scene)  # unknown options are a case error, not a skip
+        return reason
+
+    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
+        reason = self.not_applicable(scene, integrator)
+        if reason is not None:
+            raise EngineUnavailable(f"pybullet: {reason}")
+        plan = sampling_plan(scene, dt)
+        model = PybulletModel(scene, integrator, dt)
+        try:
+            return self._run(scene, integrator, dt, plan, model)
+        finally:
+            model.close()
+
+    def _run(self, scene: Scene, integrator: str, dt: float, plan: SamplingPlan,
+             model: PybulletModel) -> Trajectory:
+        poses = model.base_poses()
+        probe = model.probe()
+        model.set_initial_state(poses)
+        effective, problems = model.effective()
+        effective["probe"] = probe
+        effective["steps_per_sample"] = plan.steps_per_sample
+        if not probe["neutral"]:
+            problems.append(
+                "a force-free step changed the velocities (relative "
+                f"{probe['max_relative_change_linear']:.3g} linear, "
+                f"{probe['max_relative_change_angular']:.3g} angular): damping or the velocity "
+                "clamp is still on")
+        clock = time.perf_counter
+        rows = [model.read_raw()]
+        failure: dict | None = None
+        stepping = 0.0
+        start = clock()
+        if problems:
+            failure = {"time": 0.0, "reason": "pybullet settings: " + "; ".join(problems)}
+        else:
+            k = plan.steps_per_sample
+            advance, read = model.advance, model.read_raw
+            for i in range(1, plan.n_samples):
+                t0 = clock()
+                try:
+                    advance(k)
+                except _p.error as exc:  # pragma: no cover - pybullet raises only on misuse
+                    failure = {"time": plan.time(i), "reason": f"pybullet error: {exc}"}
+                    break
+                stepping += clock() - t0
+                row = read()
+                if not all(map(math.isfinite, row)):
+                    failure = {"time": plan.time(i), "reason": "non-finite state"}
+                    break
+                rows.append(row)
+        loop = clock() - start
+        t_conv = clock()
+        t = np.arange(len(rows)) * plan.steps_per_sample * dt
+        (com, rot, vel, omega), extras = model.convert(np.array(rows), t)
+        meta = self.base_meta(scene, integrator, dt)
+        meta["effective"] = effective
+        warnings = []
+        if scene.dimension == 3 and len(omega):
+            spin = float(np.max(np.linalg.norm(omega, axis=-1))) * dt
+        else:
+            spin = float(np.max(np.abs(omega), initial=0.0)) * dt
+        if spin > MAX_ROTATION_PER_STEP:
+            warnings.append(f"a sampled |omega| dt of {spin:.3g} rad exceeds PyBullet's cap of "
+                            f"pi/4 per step: orientations rotate too little")
+        effective["warnings"] = warnings
+        traj = _finish(plan, scene, t, com, rot, vel, omega, meta, extras, failure)
+        traj.meta["wall_time"] = stepping
+        traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
+        return traj
+
+
+def _finish(plan: SamplingPlan, scene: Scene, t, com, rot, vel, omega, meta, extras,
+            failure) -> Trajectory:
+    """Fill a TrajectoryRecorder with converted samples; keep 2D angles as unwrapped here.
+
+    ``TrajectoryRecorder.finish`` applies ``np.unwrap`` to 2D angles, which would undo a true
+    turn of more than half a revolution between samples; the angles are already continuous.
+    """
+    n = len(t)
+    rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), scene.dimension)
+    rec.t[:n] = t
+    rec.com[:n], rec.rot[:n], rec.vel[:n], rec.omega[:n] = com, rot, vel, omega
+    rec.count = n
+    if failure is not None:
+        rec.fail(failure["time"], failure["reason"])
+    traj = rec.finish(meta, extras)
+    if scene.dimension == 2:
+        traj.angle = np.array(rot, float).reshape(n, len(scene.bodies))
+    return traj
