@@ -1,0 +1,305 @@
+"""Pymunk (Chipmunk2D) adapter: 2D scenes only, state in crosscheck's convention.
+
+Model (see docs/engines.md, section Pymunk)
+-------------------------------------------
+* One ``pymunk.Body(mass, moment)`` per scene body, no shapes (nothing collides; a shape with a
+  mass or density would also recompute the body's mass, moment and centre of gravity). Set in this
+  order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
+  body-frame origin (Chipmunk rotates about the centre of gravity and places it from the
+  position), ``velocity`` = the centre-of-gravity velocity, ``angular_velocity``. ``moment`` is
+  about the centre of gravity, as the Scene's.
+* Reading: ``local_to_world(center_of_gravity)`` is the centre of mass, ``Body.velocity`` its
+  velocity, ``Body.angle`` the angle (Chipmunk never wraps it). Energy is computed by crosscheck
+  from the state, never from ``Body.kinetic_energy`` (which is m v^2 + I w^2, twice the energy).
+* ``Space()`` is never threaded (``cpHastySpaceStep`` is not deterministic); ``damping = 1``,
+  ``gravity`` = the scene's or (0, 0), ``sleep_time_threshold = inf``: all read back.
+
+Integration (the only integrator, ``position_first``): Chipmunk's step first moves positions with
+the old velocities, ``x_{n+1} = x_n + h v_n``, ``theta_{n+1} = theta_n + h w_n``, then updates the
+velocities, ``v_{n+1} = v_n + h (g + F/m)``, and runs the constraint solver.
+
+* Springs are ``pymunk.DampedSpring`` constraints (a world anchor is a spring to
+  ``space.static_body``, whose local frame is the world frame; anchors are body-frame points
+  relative to the body origin, as the Scene's). The spring force comes from the configuration
+  *after* the position update (x_{n+1}): symplectic. Its damping acts on the relative velocity
+  along the spring axis, as the Scene's, but as an exponential decay over the step
+  (``v_rel *= exp(-c h k_eff)``, k_eff the inverse effective mass along the axis): first-order
+  consistent with ``c dl/dt``. No Python runs per step for springs.
+* Drag and loads are set as ``Body.force`` / ``Body.torque`` (world frame, at the centre of
+  gravity) before every step from the state at the start of the step: Chipmunk resets them after
+  each step. Drag is therefore explicit in the velocity. Without drag or loads the loop only calls
+  ``space.step``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from crosscheck.engines.base import Capabilities, EngineBase, SamplingPlan, sampling_plan
+from crosscheck.errors import CaseError, EngineUnavailable
+from crosscheck.scene.model import Scene
+from crosscheck.state import Trajectory, TrajectoryRecorder
+
+try:  # a missing or broken pymunk makes this engine "not applicable", not an import error
+    import pymunk as _pm
+except Exception:  # pragma: no cover
+    _pm = None
+
+INTEGRATORS: tuple[str, ...] = ("position_first",)
+
+INTEGRATOR_NOTES = {
+    "position_first": "Chipmunk's step: x += h v_n and theta += h w_n first, then "
+                      "v += h (g + F/m); springs (DampedSpring) from the updated positions, "
+                      "their damping an exponential decay of the axial relative velocity; drag "
+                      "and loads from the start-of-step state. First order; free fall drops "
+                      "g h^2 N (N - 1) / 2",
+}
+
+# Engine options a case may pin in [engine_options.pymunk].
+OPTIONS: dict[str, tuple[str, Any]] = {
+    "iterations": ("a positive integer (constraint solver iterations, Chipmunk default 10)", None),
+}
+
+_SHAPES = ("circle", "box", "polygon")
+
+
+def engine_options(scene: Scene) -> dict[str, Any]:
+    given = dict(scene.engine_options.get("pymunk", {}))
+    out: dict[str, Any] = {key: default for key, (_, default) in OPTIONS.items()}
+    for key, value in given.items():
+        field = f"engine_options.pymunk.{key}"
+        if key not in OPTIONS:
+            raise CaseError(scene.source, field,
+                            f"one of the Pymunk adapter's options {sorted(OPTIONS)}",
+                            f"unknown option {key!r}")
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise CaseError(scene.source, field, OPTIONS[key][0], value)
+        out[key] = value
+    return out
+
+
+class PymunkModel:
+    """One pymunk Space holding one 2D Scene; ``advance(n)`` steps, ``read()`` samples."""
+
+    def __init__(self, scene: Scene, dt: float, options: dict[str, Any] | None = None):
+        if _pm is None:  # pragma: no cover
+            raise ImportError("pymunk is not installed")
+        if scene.dimension != 2:
+            raise ValueError("pymunk is 2D")
+        self.scene = scene
+        self.dt = float(dt)
+        self.options = engine_options(scene) if options is None else options
+        space = _pm.Space(threaded=False)
+        g = scene.effects.gravity_vector(2)
+        space.gravity = (float(g[0]), float(g[1]))
+        space.damping = 1.0
+        space.sleep_time_threshold = math.inf
+        if self.options.get("iterations") is not None:
+            space.iterations = int(self.options["iterations"])
+        self.space = space
+        self.bodies: list[Any] = []
+        for body in scene.bodies:
+            pb = _pm.Body(float(body.mass), float(body.moment), body_type=_pm.Body.DYNAMIC)
+            # Order matters: the angle rotates about the centre of gravity, and the position
+            # setter places the centre of gravity from the origin with the current angle.
+            pb.center_of_gravity = (float(body.com[0]), float(body.com[1]))
+            pb.angle = float(body.angle)
+            pb.position = (float(body.position[0]), float(body.position[1]))
+            pb.velocity = (float(body.velocity[0]), float(body.velocity[1]))
+            pb.angular_velocity = float(body.angular_velocity[0])
+            space.add(pb)
+            self.bodies.append(pb)
+        self.springs: list[Any] = []
+        for s in scene.effects.springs:
+            a = self.bodies[s.body_a]
+            b = space.static_body if s.body_b is None else self.bodies[s.body_b]
+            spring = _pm.DampedSpring(a, b, (float(s.attach_a[0]), float(s.attach_a[1])),
+                                      (float(s.attach_b[0]), float(s.attach_b[1])),
+                                      float(s.rest_length), float(s.stiffness), float(s.damping))
+            space.add(spring)
+            self.springs.append(spring)
+        # Per-step forces: (body, linear drag, angular drag, load force, load torque).
+        n = len(scene.bodies)
+        lin, ang = np.zeros(n), np.zeros(n)
+        for d in scene.effects.drag:
+            for i in d.bodies:
+                lin[i] += d.linear
+                ang[i] += d.angular
+        force = np.zeros((n, 2))
+        torque = np.zeros(n)
+        for ld in scene.effects.loads:
+            force[ld.body] += ld.force
+            torque[ld.body] += ld.torque[0]
+        self.per_step = [(self.bodies[i], float(lin[i]), float(ang[i]), float(force[i, 0]),
+                          float(force[i, 1]), float(torque[i])) for i in range(n)
+                         if lin[i] or ang[i] or force[i].any() or torque[i]]
+
+    def read_raw(self) -> list[float]:
+        """One flat row: per body COM x, y, angle, COM velocity x, y, angular velocity."""
+        row: list[float] = []
+        for b in self.bodies:
+            c = b.local_to_world(b.center_of_gravity)
+            v = b.velocity
+            row += [c.x, c.y, b.angle, v.x, v.y, b.angular_velocity]
+        return row
+
+    def advance(self, nsteps: int) -> None:
+        step, dt = self.space.step, self.dt
+        if not self.per_step:
+            for _ in range(nsteps):
+                step(dt)
+            return
+        forces = self.per_step
+        for _ in range(nsteps):
+            for body, c, ca, fx, fy, tau in forces:
+                if c:
+                    v = body.velocity
+                    body.force = (fx - c * v.x, fy - c * v.y)
+                else:
+                    body.force = (fx, fy)
+                body.torque = tau - ca * body.angular_velocity
+            step(dt)
+
+    def effective(self) -> tuple[dict[str, Any], list[str]]:
+        """Settings read back from the Space, bodies and springs, and mismatches with the scene."""
+        space = self.space
+        problems: list[str] = []
+        g = self.scene.effects.gravity_vector(2)
+        gravity = [space.gravity.x, space.gravity.y]
+        if gravity != [float(g[0]), float(g[1])]:
+            problems.append(f"gravity read back {gravity}, scene has {list(g)}")
+        if space.damping != 1.0:
+            problems.append(f"space damping read back {space.damping}, must be 1")
+        if space.threaded:
+            problems.append("the space is threaded (not deterministic)")
+        bodies = []
+        for pb, body in zip(self.bodies, self.scene.bodies, strict=True):
+            cog = [pb.center_of_gravity.x, pb.center_of_gravity.y]
+            entry = {"name": body.name, "mass": pb.mass, "moment": pb.moment,
+                     "center_of_gravity": cog, "shapes": len(pb.shapes),
+                     "body_type": "dynamic" if pb.body_type == _pm.Body.DYNAMIC else "other"}
+            if pb.mass != float(body.mass) or pb.moment != float(body.moment):
+                problems.append(f"body {body.name!r}: mass/moment read back {pb.mass}/"
+                                f"{pb.moment}, scene {body.mass}/{body.moment}")
+            if cog != [float(body.com[0]), float(body.com[1])]:
+                problems.append(f"body {body.name!r}: centre of gravity read back {cog}, "
+                                f"scene {list(body.com)}")
+            bodies.append(entry)
+        springs = []
+        for sp, s in zip(self.springs, self.scene.effects.springs, strict=True):
+            springs.append({"mechanism": "DampedSpring", "stiffness": sp.stiffness,
+                            "damping": sp.damping, "rest_length": sp.rest_length,
+                            "anchor_a": list(sp.anchor_a), "anchor_b": list(sp.anchor_b),
+                            "max_force": sp.max_force})
+            if (sp.stiffness, sp.damping, sp.rest_length) != (
+                    float(s.stiffness), float(s.damping), float(s.rest_length)):
+                problems.append("a DampedSpring did not take the scene's parameters")
+        return {
+            "gravity": gravity,
+            "damping": space.damping,
+            "iterations": space.iterations,
+            "sleep_time_threshold": space.sleep_time_threshold,
+            "idle_speed_threshold": space.idle_speed_threshold,
+            "threaded": bool(space.threaded),
+            "bodies": bodies,
+            "springs": springs,
+            "forces": ("Body.force/torque per step from the start-of-step state"
+                       if self.per_step else "none"),
+            "options": dict(self.options),
+        }, problems
+
+
+class PymunkEngine(EngineBase):
+    name = "pymunk"
+
+    def capabilities(self) -> Capabilities:
+        return Capabilities(
+            dimensions=frozenset({2}),
+            shapes=frozenset(_SHAPES),
+            effects=frozenset({"gravity", "springs", "drag", "loads"}),
+            integrators=INTEGRATORS,
+            notes=dict(INTEGRATOR_NOTES),
+        )
+
+    def version(self) -> str:
+        if _pm is None:  # pragma: no cover
+            return "not installed"
+        return f"{_pm.version} (Chipmunk {_pm.chipmunk_version})"
+
+    def not_applicable(self, scene: Scene, integrator: str) -> str | None:
+        if _pm is None:  # pragma: no cover
+            return "the pymunk package is not installed"
+        if scene.dimension != 2:
+            return "pymunk is 2D"
+        if scene.effects.fluid or scene.fluid is not None:
+            return "Pymunk has no grid fluid"
+        if scene.effects.contact:
+            return "contact is not mapped yet (reserved for the contact issue)"
+        reason = super().not_applicable(scene, integrator)
+        if reason is None:
+            engine_options(scene)  # unknown options are a case error, not a skip
+        return reason
+
+    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
+        reason = self.not_applicable(scene, integrator)
+        if reason is not None:
+            raise EngineUnavailable(f"pymunk: {reason}")
+        plan = sampling_plan(scene, dt)
+        model = PymunkModel(scene, dt)
+        effective, problems = model.effective()
+        effective["steps_per_sample"] = plan.steps_per_sample
+        clock = time.perf_counter
+        rows = [model.read_raw()]
+        failure: dict | None = None
+        stepping = 0.0
+        start = clock()
+        if problems:
+            failure = {"time": 0.0, "reason": "pymunk settings: " + "; ".join(problems)}
+        else:
+            k = plan.steps_per_sample
+            advance, read = model.advance, model.read_raw
+            for i in range(1, plan.n_samples):
+                t0 = clock()
+                advance(k)
+                stepping += clock() - t0
+                row = read()
+                if not all(map(math.isfinite, row)):
+                    failure = {"time": plan.time(i), "reason": "non-finite state"}
+                    break
+                rows.append(row)
+        loop = clock() - start
+        t_conv = clock()
+        n = len(scene.bodies)
+        raw = np.array(rows, float).reshape(len(rows), n, 6)
+        meta = self.base_meta(scene, integrator, dt)
+        meta["effective"] = effective
+        traj = _finish(plan, scene, raw, meta, failure)
+        traj.meta["wall_time"] = stepping
+        traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
+        return traj
+
+
+def _finish(plan: SamplingPlan, scene: Scene, raw: np.ndarray, meta: dict, failure
+            ) -> Trajectory:
+    """Recorder filled with the samples; angles kept as Chipmunk gave them.
+
+    ``TrajectoryRecorder.finish`` applies ``np.unwrap``, which would undo a true turn of more
+    than half a revolution between samples; Chipmunk's angle is already continuous.
+    """
+    count = len(raw)
+    rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), 2)
+    rec.t[:count] = np.arange(count) * plan.steps_per_sample * plan.dt
+    rec.com[:count] = raw[..., 0:2]
+    rec.rot[:count] = raw[..., 2]
+    rec.vel[:count] = raw[..., 3:5]
+    rec.omega[:count] = raw[..., 5]
+    rec.count = count
+    if failure is not None:
+        rec.fail(failure["time"], failure["reason"])
+    traj = rec.finish(meta)
+    traj.angle = raw[..., 2].copy()
+    return traj
