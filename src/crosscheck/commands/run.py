@@ -1,0 +1,183 @@
+"""``crosscheck run PATH...``: every case on every applicable engine and integrator.
+
+Runs the matrix case x engine x integrator x dt in worker processes (local cores, or a Dask
+cluster with ``--scheduler``), prints a table of end-state differences, and writes
+``results.json``, ``summary.md``, ``junit.xml`` and ``index.html`` into ``--out``.
+
+Exit status: 0 every applicable cell passes (and nothing regressed against ``--baseline``);
+1 a cell failed, blew up, errored or timed out, or a metric regressed; 2 a usage or input error
+(a broken case file, an unknown engine, a missing baseline); 130 interrupted (the reports of what
+ran are still written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from crosscheck.errors import CrosscheckError
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser(
+        "run", help="run cases on every applicable engine and integrator, write reports",
+        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="exit status: 0 all applicable cells pass, 1 a failure or regression, "
+               "2 a usage or input error, 130 interrupted")
+    p.add_argument("paths", nargs="+", metavar="PATH",
+                   help="case files or folders (searched recursively for *.toml case files)")
+    p.add_argument("--engines", metavar="A,B",
+                   help="only these engines (of those each case lists): inhouse, mujoco, "
+                        "pybullet, pymunk")
+    p.add_argument("--integrators", metavar="X,Y",
+                   help="run these integrators instead of each case's list; 'engine.integrator' "
+                        "applies to one engine")
+    p.add_argument("--dt", metavar="X[,Y]", help="time step(s) instead of each case's dt")
+    p.add_argument("--out", default="reports/latest", metavar="DIR",
+                   help="output folder for the reports (default: reports/latest)")
+    p.add_argument("--save-trajectories", action="store_true",
+                   help="also write every trajectory as DIR/trajectories/<case>/"
+                        "<engine>-<integrator>-dt<dt>.npz")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help=f"worker processes (default: the number of cores, {os.cpu_count()})")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on a Dask distributed cluster (e.g. tcp://host:8786)")
+    p.add_argument("--baseline", metavar="FILE",
+                   help="compare with a committed baseline (reports/baseline.json); "
+                        "a regression exits 1")
+    p.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="wall seconds per cell before it is killed (default: each case's "
+                        "run.timeout)")
+    p.add_argument("--progress", choices=("auto", "bar", "plain", "none"), default="auto",
+                   help="progress display (default: a bar on a terminal, lines otherwise)")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args) -> int:
+    from crosscheck.baseline import load_baseline
+    from crosscheck.runner.plan import UsageError, build_matrix, parse_dts, parse_list
+    from crosscheck.runner.progress import make_progress
+    from crosscheck.runner.session import run_and_report
+    from crosscheck.scene.loader import find_cases, load_case
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1")
+    if args.timeout is not None and not (args.timeout > 0 and math.isfinite(args.timeout)):
+        raise UsageError("--timeout must be a positive number of seconds")
+    for path in args.paths:
+        if not Path(path).exists():
+            raise UsageError(f"{path}: no such file or folder")
+    files = find_cases(args.paths)
+    if not files:
+        raise UsageError(f"no case files under {' '.join(args.paths)}")
+    scenes = [load_case(f) for f in files]  # a broken case file stops here: exit 2
+    baseline = load_baseline(args.baseline) if args.baseline else None
+    matrix = build_matrix(
+        scenes, engines=parse_list(args.engines), integrators=parse_list(args.integrators),
+        dts=parse_dts(args.dt), out=args.out, save_trajectories=args.save_trajectories,
+        timeout=args.timeout)
+    if not matrix.cells:
+        raise UsageError("no cells to run: no case lists any of the selected engines")
+
+    if args.scheduler:
+        from crosscheck.runner.dask_backend import DaskBackend
+
+        try:
+            backend = DaskBackend(args.scheduler)
+        except (OSError, TimeoutError) as exc:
+            raise CrosscheckError(f"cannot reach the Dask scheduler {args.scheduler}: {exc}") \
+                from None
+    else:
+        from crosscheck.runner.local import LocalBackend
+
+        backend = LocalBackend(args.workers)
+    n_cells, n_refs = len(matrix.cells), len(matrix.references)
+    print(f"crosscheck: {len(scenes)} case(s), {n_cells} cell(s)"
+          + (f" + {n_refs} reference run(s)" if n_refs else "")
+          + f" on {backend.workers} {backend.name} worker(s) -> {args.out}", flush=True)
+    progress = None if args.progress == "none" else make_progress(
+        n_cells + n_refs, args.progress)
+    settings = {
+        "backend": backend.name, "workers": backend.workers, "scheduler": args.scheduler,
+        "engines": args.engines, "integrators": args.integrators, "dt": args.dt,
+        "timeout": args.timeout, "out": args.out, "save_trajectories": args.save_trajectories,
+        "baseline": args.baseline,
+    }
+    outcome = run_and_report(matrix, backend, args.out, command=sys.argv, settings=settings,
+                             baseline=baseline, baseline_file=args.baseline, progress=progress)
+    print()
+    print(end_state_table(outcome.cells))
+    if outcome.comparison is not None:
+        print()
+        print(f"against the baseline {args.baseline}:")
+        print("\n".join(outcome.comparison.lines()))
+    from crosscheck.report.markdown import headline
+
+    res = outcome.doc.get("resources", {})
+    print()
+    print(headline(outcome.doc))
+    print(f"peak resident memory {res.get('peak_rss_total_mb')} MiB over {res.get('workers')} "
+          f"{res.get('backend')} worker(s); wall {res.get('wall_seconds')} s")
+    print(f"reports: {Path(args.out) / 'index.html'}, results.json, summary.md, junit.xml")
+    return outcome.exit_status
+
+
+# -- the end-state table ---------------------------------------------------------------------------
+def _diff(a: dict, b: dict) -> tuple[float, float, float]:
+    """(max |dx|, max orientation angle, max |dv|) over bodies between two end states."""
+    from crosscheck.rotations import quat_angle_between
+
+    dx = float(np.max(np.linalg.norm(np.subtract(a["com"], b["com"]), axis=-1)))
+    dv = float(np.max(np.linalg.norm(np.subtract(a["vel"], b["vel"]), axis=-1)))
+    if a.get("rot_kind") == "quat":
+        dq = float(np.max(quat_angle_between(np.asarray(a["rot"]), np.asarray(b["rot"]))))
+    else:
+        d = np.subtract(a["rot"], b["rot"])
+        dq = float(np.max(np.abs(np.arctan2(np.sin(d), np.cos(d)))))
+    return dx, dq, dv
+
+
+def end_state_table(cells: list[dict]) -> str:
+    """Per case, each cell's final state against the reference's (or the case's first cell).
+
+    |dx|: largest centre-of-mass distance (m); dangle: largest orientation difference (rad,
+    geodesic); |dv|: largest velocity difference (m/s); over bodies, at the last common sample.
+    """
+    rows = [("case", "engine-integrator", "dt", "status", "t_end", "vs", "|dx| m", "dangle rad",
+             "|dv| m/s")]
+    by_case: dict[str, list[dict]] = {}
+    for c in cells:
+        by_case.setdefault(c["case"], []).append(c)
+    for case, group in by_case.items():
+        group = sorted(group, key=lambda c: (c["engine"], c["integrator"], c["dt"]))
+        first = next((c for c in group if c.get("end_state")), None)
+        for c in group:
+            end = c.get("end_state")
+            label = f"{c['engine']}-{c['integrator']}"
+            if not end:
+                rows.append((case, label, f"{c['dt']:g}", c["status"], "", "", "", "", ""))
+                continue
+            other, vs = c.get("reference_end"), "reference"
+            if not other and first is not None and first is not c:
+                other, vs = first["end_state"], f"{first['engine']}-{first['integrator']}"
+                if abs(other["t"] - end["t"]) > 1e-9 * max(1.0, end["t"]):
+                    other = None  # different end times: not comparable
+            if other and other.get("com") is not None:
+                try:
+                    dx, dq, dv = _diff(end, other)
+                    vals = (f"{dx:.3g}", f"{dq:.3g}", f"{dv:.3g}")
+                except (ValueError, TypeError):
+                    vals, vs = ("", "", ""), ""
+            else:
+                vals, vs = ("", "", ""), ""
+            rows.append((case, label, f"{c['dt']:g}", c["status"], f"{end['t']:.4g}", vs, *vals))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip()
+                     for r in rows)

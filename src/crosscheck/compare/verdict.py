@@ -1,0 +1,137 @@
+"""Verdicts: a cell's metrics against its case's tolerances.
+
+A metric with a limit for this engine and integrator (``Tolerance.limit(engine, integrator)``;
+``engine.integrator`` beats ``integrator`` beats ``engine`` beats ``default``) passes when
+``value <= limit``; a NaN value fails. The cell's status is, in this order:
+
+* ``blowup`` when the run blew up (non-finite state, or runaway energy; see metrics.blowup),
+* ``error`` when a tolerance names a metric this cell could not compute (a misspelt metric, a
+  reference that failed or defines no such quantity) -- a case or harness problem, not physics,
+* ``fail`` when any limited metric exceeds its limit,
+* ``pass`` otherwise (including a case with no tolerances: its metrics are only reported).
+
+A limit on a metric that is not meaningful in this scene (energy drift with drag) is ignored and
+the metric says so: non-conserved quantities never fail a case. The worst metric of a cell is
+the one with the largest ``value / limit``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from crosscheck.scene.model import Scene
+
+STATUSES = ("pass", "fail", "blowup", "error", "timeout", "not_applicable")
+# Statuses that make `crosscheck run` exit 1 (not_applicable and pass do not).
+FAILING = frozenset({"fail", "blowup", "error", "timeout"})
+
+
+@dataclass
+class Verdict:
+    status: str
+    reason: str = ""
+    metrics: dict[str, dict[str, Any]] = field(default_factory=dict)
+    worst: dict[str, Any] | None = None
+
+
+def ratio(value: float | None, limit: float | None) -> float | None:
+    """value / limit, inf when the limit is 0 and the value is not, NaN-safe."""
+    if value is None or limit is None:
+        return None
+    if isinstance(value, float) and math.isnan(value):
+        return math.inf
+    if limit == 0:
+        return 0.0 if value == 0 else math.inf
+    return value / limit
+
+
+def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[str, Any]],
+          *, blowup_time: float | None = None, blowup_reason: str | None = None,
+          missing_reason: str = "") -> Verdict:
+    """Attach limits to ``metrics`` (name -> Metric.to_dict()) and decide the status.
+
+    ``missing_reason`` explains why reference metrics may be absent (e.g. the reference failed).
+    """
+    out = {name: dict(m) for name, m in metrics.items()}
+    failed, missing = [], []
+    for name, tol in scene.tolerances.items():
+        limit = tol.limit(engine, integrator)
+        if limit is None:
+            continue
+        entry = out.get(name)
+        if entry is None or (entry.get("value") is None and "value_text" not in entry):
+            note = f"tolerance {limit:g} given but the metric was not computed"
+            if missing_reason:
+                note += f" ({missing_reason})"
+            if entry is None:
+                entry = out[name] = {"value": None}
+            entry.update(limit=limit, passed=False, note=(entry.get("note", "") + "; " + note)
+                         .lstrip("; "))
+            missing.append(name)
+            continue
+        entry["limit"] = limit
+        if entry.get("meaningful", True) is False:
+            entry["passed"] = None
+            entry["note"] = "tolerance ignored: " + entry.get("note", "")
+            continue
+        value = entry.get("value")
+        ok = value is not None and value <= limit  # NaN / inf stored as value None + value_text
+        entry["passed"] = bool(ok)
+        if not ok:
+            failed.append(name)
+
+    worst = None
+    for name, entry in out.items():
+        r = ratio(_numeric(entry), entry.get("limit")) if entry.get("passed") is not None else None
+        if r is not None and (worst is None or r > worst["ratio"]):
+            worst = {"metric": name, "value": _numeric(entry), "limit": entry["limit"],
+                     "ratio": r}
+
+    if blowup_time is not None:
+        status, reason = "blowup", f"blew up at t = {blowup_time:.6g} s: {blowup_reason or ''}"
+    elif missing:
+        status = "error"
+        reason = f"metric(s) with a tolerance not computed: {', '.join(missing)}"
+        if missing_reason:
+            reason += f" ({missing_reason})"
+    elif failed:
+        status = "fail"
+        reason = "; ".join(f"{n} = {_fmt(_numeric(out[n]))} > {out[n]['limit']:g}"
+                           for n in failed)
+    else:
+        status, reason = "pass", ""
+    return Verdict(status=status, reason=reason.strip(), metrics=out, worst=worst)
+
+
+def _numeric(entry: dict[str, Any]) -> float | None:
+    if entry.get("value") is not None:
+        return entry["value"]
+    text = entry.get("value_text")
+    return float(text) if text else None
+
+
+def _fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3g}"
+
+
+def metric_table(metrics: dict[str, dict[str, Any]]) -> str:
+    """A plain-text table of metrics (name, value, limit, verdict, note) for failures and logs."""
+    rows = [("metric", "value", "limit", "verdict", "note")]
+    for name in sorted(metrics, key=lambda n: (metrics[n].get("limit") is None, n)):
+        m = metrics[name]
+        value = _numeric(m)
+        limit = m.get("limit")
+        passed = m.get("passed")
+        verdict = {True: "ok", False: "FAIL", None: "-"}[passed] if "passed" in m else "-"
+        if m.get("meaningful") is False:
+            verdict = "n/m"  # not meaningful in this scene
+        rows.append((name, "n/a" if value is None else f"{value:.4g}" + (
+            f" {m['unit']}" if m.get("unit") else ""),
+            "" if limit is None else f"{limit:g}", verdict, m.get("note", "")[:90]))
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    lines = []
+    for r in rows:
+        lines.append("  ".join(r[i].ljust(widths[i]) for i in range(4)) + "  " + r[4])
+    return "\n".join(line.rstrip() for line in lines)

@@ -1,0 +1,60 @@
+"""The runner: the matrix case x engine x integrator x dt in worker processes.
+
+Public API
+    :func:`crosscheck.runner.plan.build_matrix` -> Matrix of task dicts;
+    :func:`schedule` runs them on a backend (:class:`~crosscheck.runner.local.LocalBackend` or
+    :class:`~crosscheck.runner.dask_backend.DaskBackend`), calling ``on_result`` as each arrives;
+    :func:`crosscheck.runner.session.run_and_report` does all of it for ``crosscheck run``,
+    writing the reports as results come in.
+
+Shared references (fine-step, engine) run first; the cells that need one are dispatched when it
+is ready, with its file, or with the reason it failed. A cell never waits on anything else.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict, deque
+from collections.abc import Callable
+from typing import Any
+
+Result = dict[str, Any]
+
+
+def schedule(tasks: list[dict[str, Any]], backend, on_result: Callable[[dict, Result], None],
+             poll_interval: float = 0.5) -> None:
+    """Run every task on ``backend``, respecting ``depends_on``; returns when all are done.
+
+    KeyboardInterrupt propagates (the caller kills the backend and reports what it has).
+    """
+    waiting: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    ready: deque[dict[str, Any]] = deque()
+    for task in tasks:
+        if task.get("depends_on"):
+            waiting[task["depends_on"]].append(task)
+        else:
+            ready.append(task)
+    inflight = 0
+    while ready or inflight:
+        while ready and backend.free():
+            backend.submit(ready.popleft())
+            inflight += 1
+        for task, result in backend.poll(poll_interval):
+            inflight -= 1
+            if task.get("kind") == "reference":
+                # Dependents go to the front: they finish a case while other references run.
+                for dep in reversed(waiting.pop(task["id"], [])):
+                    if result.get("status") == "ok":
+                        dep["reference_file"] = result["path"]
+                    else:
+                        first = (result.get("reason") or "").splitlines()[:1]
+                        dep["reference_error"] = (f"reference run {result.get('status')}: "
+                                                  + (first[0] if first else ""))
+                    ready.appendleft(dep)
+            on_result(task, result)
+    # Anything still waiting depended on a reference that never ran (should not happen).
+    for deps in waiting.values():
+        for dep in deps:
+            dep["reference_error"] = "reference run never completed"
+            ready.append(dep)
+    if ready:
+        schedule(list(ready), backend, on_result, poll_interval)

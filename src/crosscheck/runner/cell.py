@@ -1,0 +1,316 @@
+"""One cell of the matrix (case x engine x integrator x dt), run in whichever process executes it.
+
+:func:`execute_task` never raises: an exception becomes an ``error`` result with the message and
+the last lines of the traceback, a blow-up a ``blowup`` result with its time. What crosses the
+process boundary is a small JSON-able dict (metrics, verdict, a few down-sampled curves for the
+plots, the end state), never the trajectory, so memory stays bounded however long the run; the
+trajectory itself goes to disk when ``save_trajectories`` is set.
+
+Task dicts (built by :mod:`crosscheck.runner.plan`):
+
+``{"kind": "cell", "id", "case", "case_file", "engine", "integrator", "dt", "timeout",
+"out", "save_trajectories", "reference": spec|None, "reference_file": str|None,
+"reference_error": str|None, "engine_refs": {name: "module:Class"}}``
+
+``{"kind": "reference", "id", "case", "case_file", "spec", "path", "timeout", "engine_refs"}``
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_SCENES: dict[tuple[str, float], Any] = {}
+
+
+def load_scene(path: str):
+    """Load a case file once per process (keyed by path and modification time)."""
+    from crosscheck.scene.loader import load_case
+
+    key = (str(path), os.path.getmtime(path))
+    if key not in _SCENES:
+        if len(_SCENES) > 64:
+            _SCENES.clear()
+        _SCENES[key] = load_case(path)
+    return _SCENES[key]
+
+
+def resolve_engine(name: str, engine_refs: dict[str, str] | None = None):
+    """The adapter for ``name``: ``engine_refs[name]`` ("module:Class") or the registry."""
+    ref = (engine_refs or {}).get(name)
+    if ref:
+        module, _, cls = ref.partition(":")
+        return getattr(importlib.import_module(module), cls)()
+    from crosscheck.engines import get_engine
+
+    return get_engine(name)
+
+
+def safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._+-]+", "_", text).strip("_") or "case"
+
+
+def dt_text(dt: float) -> str:
+    return f"{dt:g}"
+
+
+def cell_id(case: str, engine: str, integrator: str, dt: float) -> str:
+    return f"{case}::{engine}-{integrator}@dt={dt_text(dt)}"
+
+
+def _peak_rss_mb() -> float | None:
+    try:
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    except Exception:  # pragma: no cover - non-POSIX
+        return None
+
+
+def _error_text(exc: BaseException) -> str:
+    tb = traceback.format_exception(type(exc), exc, exc.__traceback__)
+    tail = "".join(tb[-3:]).strip()
+    return f"{type(exc).__name__}: {exc}\n{tail}"
+
+
+def base_result(task: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "id": task["id"], "kind": task.get("kind", "cell"), "case": task.get("case"),
+        "case_file": task.get("case_file"), "engine": task.get("engine"),
+        "integrator": task.get("integrator"), "dt": task.get("dt"), "status": "error",
+        "reason": "", "metrics": {},
+    }
+
+
+def execute_task(task: dict[str, Any]) -> dict[str, Any]:
+    """Run one task in this process; never raises."""
+    started = time.perf_counter()
+    try:
+        if task.get("kind") == "reference":
+            result = _execute_reference(task)
+        else:
+            result = _execute_cell(task)
+    except Exception as exc:  # any failure of one cell is that cell's result
+        result = base_result(task)
+        result.update(status="error", reason=_error_text(exc))
+    result["cell_seconds"] = time.perf_counter() - started
+    result["peak_rss_mb"] = _peak_rss_mb()
+    result["pid"] = os.getpid()
+    return result
+
+
+# -- references ------------------------------------------------------------------------------------
+def _execute_reference(task: dict[str, Any]) -> dict[str, Any]:
+    from crosscheck.compare.reference import compute_reference
+
+    result = base_result(task)
+    scene = load_scene(task["case_file"])
+    traj = compute_reference(scene, task["spec"],
+                             get_engine=lambda n: resolve_engine(n, task.get("engine_refs")))
+    if traj.failure:
+        result.update(status="blowup", reason=f"reference blew up: {traj.failure}")
+        return result
+    traj.save(task["path"])
+    result.update(status="ok", path=task["path"], wall_time=traj.wall_time)
+    return result
+
+
+# -- cells -----------------------------------------------------------------------------------------
+def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
+    result = base_result(task)
+    engine_name, integrator, dt = task["engine"], task["integrator"], float(task["dt"])
+    scene = load_scene(task["case_file"])
+    result["case_sha256"] = scene.source_sha256
+    try:
+        engine = resolve_engine(engine_name, task.get("engine_refs"))
+    except Exception as exc:  # a missing or broken engine package: not applicable, not a crash
+        result.update(status="not_applicable",
+                      reason=f"{engine_name} unavailable: {type(exc).__name__}: {exc}")
+        return result
+    try:
+        result["engine_version"] = engine.version()
+    except Exception as exc:
+        result["engine_version"] = f"unknown ({type(exc).__name__})"
+    reason = engine.not_applicable(scene, integrator)
+    if reason:
+        result.update(status="not_applicable", reason=reason)
+        return result
+
+    t0 = time.perf_counter()
+    output = engine.run(scene, integrator, dt)
+    run_seconds = time.perf_counter() - t0
+    if scene.fluid is not None or not _is_trajectory(output):
+        return _finish_fluid(task, scene, output, result, run_seconds)
+    return _finish_rigid(task, scene, output, result, run_seconds)
+
+
+def _is_trajectory(obj) -> bool:
+    from crosscheck.state import Trajectory
+
+    return isinstance(obj, Trajectory)
+
+
+def _cost(wall: float | None, simulated: float) -> float | None:
+    if wall is None or simulated <= 0:
+        return None
+    return float(wall) / simulated
+
+
+def _finish_rigid(task, scene, traj, result, run_seconds):
+    from crosscheck.compare.interp import resample
+    from crosscheck.compare.metrics import compute_metrics
+    from crosscheck.compare.reference import analytic_reference
+    from crosscheck.compare.verdict import judge, metric_table
+
+    spec = task.get("reference")
+    ref = extra = None
+    missing_reason = ""
+    if spec is not None:
+        try:
+            if spec["kind"] == "analytic":
+                ref, extra = analytic_reference(scene, traj.t, spec["solution"])
+            elif task.get("reference_file"):
+                from crosscheck.state import Trajectory
+
+                ref = Trajectory.load(task["reference_file"])
+            elif spec["kind"] == "table":
+                missing_reason = "a rigid scene has no published table reference"
+            else:
+                missing_reason = task.get("reference_error") or "reference unavailable"
+        except Exception as exc:
+            missing_reason = f"reference failed: {type(exc).__name__}: {exc}"
+            ref = extra = None
+
+    safe_extra = None
+    if extra is not None:
+        def safe_extra(s, t, _extra=extra):
+            try:
+                return _extra(s, t)
+            except Exception as exc:  # a solution-specific metric must not sink the cell
+                nonlocal missing_reason
+                missing_reason = f"extra metrics failed: {type(exc).__name__}: {exc}"
+                return {}
+
+    ms = compute_metrics(scene, traj, ref, extra=safe_extra)
+    metrics = {name: m.to_dict() for name, m in ms.metrics.items()}
+    verdict = judge(scene, task["engine"], task["integrator"], metrics,
+                    blowup_time=ms.blowup_time, blowup_reason=ms.blowup_reason,
+                    missing_reason=missing_reason)
+    simulated = float(traj.t[-1] - traj.t[0]) if len(traj.t) > 1 else 0.0
+    wall = traj.wall_time if traj.wall_time is not None else run_seconds
+    result.update(
+        status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
+        worst=verdict.worst, wall_time=wall, simulated_time=simulated,
+        cost=_cost(wall, simulated), failure=traj.failure, series=ms.series,
+        engine_version=traj.meta.get("engine_version", result.get("engine_version")),
+        effective=_small(traj.meta.get("effective") or traj.meta.get("settings")),
+        samples=len(traj.t),
+    )
+    if missing_reason:
+        result["reference_note"] = missing_reason
+    result["end_state"] = _end_state(traj)
+    if ref is not None and len(traj.t):
+        ref_end = resample(ref, traj.t[-1:])
+        result["reference_end"] = _end_state(ref_end)
+    if verdict.status in ("fail", "error", "blowup"):
+        result["metric_table"] = metric_table(verdict.metrics)
+    if task.get("save_trajectories") and task.get("out"):
+        path = trajectory_path(task)
+        traj.save(path)
+        result["trajectory_file"] = str(path)
+    return result
+
+
+def trajectory_path(task, suffix: str = ".npz") -> Path:
+    """``OUT/trajectories/<case>/<engine>-<integrator>-dt<dt>.npz`` (DESIGN.md)."""
+    return (Path(task["out"]) / "trajectories" / safe_name(task["case"])
+            / f"{task['engine']}-{task['integrator']}-dt{dt_text(float(task['dt']))}{suffix}")
+
+
+def _small(value):
+    """Keep engine settings only if they are small JSON-able data."""
+    import json
+
+    if value is None:
+        return None
+    try:
+        text = json.dumps(value, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+    except (TypeError, ValueError):
+        return None
+    return json.loads(text) if len(text) < 4000 else None
+
+
+def _end_state(traj) -> dict[str, Any] | None:
+    if not len(traj.t):
+        return None
+    rot = traj.quat if traj.quat is not None else traj.angle
+
+    def last(a):
+        return None if a is None else np.asarray(a[-1], float).tolist()
+
+    return {"t": float(traj.t[-1]), "com": last(traj.com), "rot": last(rot),
+            "vel": last(traj.vel), "omega": last(traj.omega),
+            "rot_kind": "quat" if traj.quat is not None else "angle"}
+
+
+def _finish_fluid(task, scene, record, result, run_seconds):
+    from crosscheck.compare.verdict import judge, metric_table
+
+    values: dict[str, float] = {}
+    note = ""
+    try:
+        from crosscheck.compare.fluid_metrics import fluid_metrics
+
+        values = fluid_metrics(scene, record)
+    except ImportError as exc:
+        note = f"fluid metrics unavailable: {exc}"
+    metrics = {}
+    for name, value in values.items():
+        value = None if value is None else float(value)
+        entry = {"value": value if value is not None and np.isfinite(value) else None}
+        if value is not None and not np.isfinite(value):
+            entry["value_text"] = str(value)
+        metrics[name] = entry
+    failure = getattr(record, "failure", None)
+    blow_t = float(failure.get("time", 0.0)) if failure else None
+    verdict = judge(scene, task["engine"], task["integrator"], metrics, blowup_time=blow_t,
+                    blowup_reason=(failure or {}).get("reason"), missing_reason=note)
+    meta = getattr(record, "meta", {}) or {}
+    wall = None
+    for key in ("wall_time", "wall_time_total", "wall"):
+        if isinstance(meta.get(key), int | float):
+            wall = float(meta[key])
+            break
+    if wall is None:
+        wall = run_seconds
+    t = np.asarray(getattr(record, "t", []), float)
+    simulated = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    result.update(status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
+                  worst=verdict.worst, wall_time=wall, simulated_time=simulated,
+                  cost=_cost(wall, simulated), failure=failure, fluid=True,
+                  engine_version=meta.get("engine_version", result.get("engine_version")))
+    if verdict.status in ("fail", "error", "blowup"):
+        result["metric_table"] = metric_table(verdict.metrics)
+    if task.get("out"):
+        try:
+            from crosscheck.report.fluid_plots import plot_fluid
+
+            plot_dir = Path(task["out"]) / "plots" / safe_name(task["case"]) / (
+                f"{task['engine']}-{task['integrator']}-dt{dt_text(float(task['dt']))}")
+            result["plots"] = [str(p) for p in plot_fluid(scene, record, plot_dir)]
+        except ImportError:
+            pass
+        except Exception as exc:  # a plot failure must not lose the numbers
+            result["plot_error"] = f"{type(exc).__name__}: {exc}"
+        if task.get("save_trajectories"):
+            path = trajectory_path(task)
+            record.save(path)
+            result["trajectory_file"] = str(path)
+    return result
