@@ -1,0 +1,270 @@
+"""2D kernels: the planar specialisation (scalar angle and angular momentum), numba, cached.
+
+State (x (N, 2), angle (N,), P (N, 2), L (N,)); dx/dt = P/m, dangle/dt = L/I, dP/dt = F,
+dL/dt = tau with tau = r x f = r_x f_y - r_y f_x. The angle is a coordinate of a vector space,
+so every rotation update here is exact bookkeeping (no normalisation, and the exponential map of
+SO(2) is the addition of angles): the 2D variants of ``rk4_exp`` and ``symplectic_euler_exp`` are
+the same kernels as ``rk4`` and ``symplectic_euler``. Effects are composed as in kernels3d.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from crosscheck.sim.rigid.kernels3d import JIT
+
+
+@njit(**JIT)
+def kinematics(bodies, P, L, v, w):
+    for i in range(P.shape[0]):
+        v[i, 0] = P[i, 0] * bodies.inv_mass[i]
+        v[i, 1] = P[i, 1] * bodies.inv_mass[i]
+        w[i] = L[i] * bodies.inv_moment[i]
+
+
+@njit(**JIT)
+def apply_gravity(bodies, g, F):
+    for i in range(F.shape[0]):
+        F[i, 0] += bodies.mass[i] * g[0]
+        F[i, 1] += bodies.mass[i] * g[1]
+
+
+@njit(**JIT)
+def spring_point(x, angle, v, w, body, r):
+    """World offset, position and velocity of the body-frame point r (relative to the com)."""
+    c = np.cos(angle[body])
+    s = np.sin(angle[body])
+    ox = c * r[0] - s * r[1]
+    oy = s * r[0] + c * r[1]
+    return (ox, oy, x[body, 0] + ox, x[body, 1] + oy,
+            v[body, 0] - w[body] * oy, v[body, 1] + w[body] * ox)
+
+
+@njit(**JIT)
+def spring_force(springs, s, x, angle, v, w):
+    a = springs.a[s]
+    b = springs.b[s]
+    oax, oay, pax, pay, vax, vay = spring_point(x, angle, v, w, a, springs.ra[s])
+    if b >= 0:
+        obx, oby, pbx, pby, vbx, vby = spring_point(x, angle, v, w, b, springs.rb[s])
+    else:
+        obx = oby = 0.0
+        pbx, pby = springs.rb[s, 0], springs.rb[s, 1]
+        vbx = vby = 0.0
+    dx, dy = pax - pbx, pay - pby
+    length = np.sqrt(dx * dx + dy * dy)
+    if length > 0.0:
+        ex, ey = dx / length, dy / length
+    else:
+        ex = ey = 0.0
+    rate = ex * (vax - vbx) + ey * (vay - vby)
+    mag = -(springs.stiffness[s] * (length - springs.rest_length[s])
+            + springs.damping[s] * rate)
+    return mag * ex, mag * ey, oax, oay, obx, oby
+
+
+@njit(**JIT)
+def apply_springs(springs, x, angle, v, w, F, T):
+    for s in range(springs.a.shape[0]):
+        fx, fy, oax, oay, obx, oby = spring_force(springs, s, x, angle, v, w)
+        a = springs.a[s]
+        F[a, 0] += fx
+        F[a, 1] += fy
+        T[a] += oax * fy - oay * fx
+        b = springs.b[s]
+        if b >= 0:
+            F[b, 0] -= fx
+            F[b, 1] -= fy
+            T[b] -= obx * fy - oby * fx
+
+
+@njit(**JIT)
+def apply_drag(drag, v, w, F, T):
+    for i in range(F.shape[0]):
+        F[i, 0] -= drag.linear[i] * v[i, 0]
+        F[i, 1] -= drag.linear[i] * v[i, 1]
+        T[i] -= drag.angular[i] * w[i]
+
+
+@njit(**JIT)
+def apply_loads(loads, F, T):
+    for k in range(loads.body.shape[0]):
+        i = loads.body[k]
+        F[i, 0] += loads.force[k, 0]
+        F[i, 1] += loads.force[k, 1]
+        T[i] += loads.torque[k]
+
+
+@njit(**JIT)
+def accumulate(bodies, gravity, springs, drag, loads, x, angle, v, w, F, T):
+    F[:] = 0.0
+    T[:] = 0.0
+    if gravity is not None:
+        apply_gravity(bodies, gravity, F)
+    if springs is not None:
+        apply_springs(springs, x, angle, v, w, F, T)
+    if drag is not None:
+        apply_drag(drag, v, w, F, T)
+    if loads is not None:
+        apply_loads(loads, F, T)
+
+
+@njit(**JIT)
+def evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T):
+    kinematics(bodies, P, L, v, w)
+    accumulate(bodies, gravity, springs, drag, loads, x, angle, v, w, F, T)
+
+
+@njit(**JIT)
+def derivative(bodies, gravity, springs, drag, loads, x, angle, P, L, dx, dangle, dP, dL):
+    evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, dx, dangle, dP, dL)
+
+
+@njit(**JIT)
+def observe(bodies, P, L, vel, omega):
+    kinematics(bodies, P, L, vel, omega)
+
+
+@njit(**JIT)
+def advance_explicit_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                x[i, c] += h * v[i, c]
+                P[i, c] += h * F[i, c]
+            angle[i] += h * w[i]
+            L[i] += h * T[i]
+
+
+@njit(**JIT)
+def advance_midpoint(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    xs = np.empty((n, 2))
+    As = np.empty(n)
+    Ps = np.empty((n, 2))
+    Ls = np.empty(n)
+    hh = 0.5 * h
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                xs[i, c] = x[i, c] + hh * v[i, c]
+                Ps[i, c] = P[i, c] + hh * F[i, c]
+            As[i] = angle[i] + hh * w[i]
+            Ls[i] = L[i] + hh * T[i]
+        evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                x[i, c] += h * v[i, c]
+                P[i, c] += h * F[i, c]
+            angle[i] += h * w[i]
+            L[i] += h * T[i]
+
+
+@njit(**JIT)
+def advance_rk4(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    xs = np.empty((n, 2))
+    As = np.empty(n)
+    Ps = np.empty((n, 2))
+    Ls = np.empty(n)
+    ax = np.empty((n, 2))
+    aA = np.empty(n)
+    aP = np.empty((n, 2))
+    aL = np.empty(n)
+    hh = 0.5 * h
+    h6 = h / 6.0
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                ax[i, c] = v[i, c]
+                aP[i, c] = F[i, c]
+                xs[i, c] = x[i, c] + hh * v[i, c]
+                Ps[i, c] = P[i, c] + hh * F[i, c]
+            aA[i] = w[i]
+            aL[i] = T[i]
+            As[i] = angle[i] + hh * w[i]
+            Ls[i] = L[i] + hh * T[i]
+        for stage in range(2):
+            evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+            step = hh if stage == 0 else h
+            for i in range(n):
+                for c in range(2):
+                    ax[i, c] += 2.0 * v[i, c]
+                    aP[i, c] += 2.0 * F[i, c]
+                    xs[i, c] = x[i, c] + step * v[i, c]
+                    Ps[i, c] = P[i, c] + step * F[i, c]
+                aA[i] += 2.0 * w[i]
+                aL[i] += 2.0 * T[i]
+                As[i] = angle[i] + step * w[i]
+                Ls[i] = L[i] + step * T[i]
+        evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                x[i, c] += h6 * (ax[i, c] + v[i, c])
+                P[i, c] += h6 * (aP[i, c] + F[i, c])
+            angle[i] += h6 * (aA[i] + w[i])
+            L[i] += h6 * (aL[i] + T[i])
+
+
+@njit(**JIT)
+def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                P[i, c] += h * F[i, c]
+                x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+            L[i] += h * T[i]
+            angle[i] += h * L[i] * bodies.inv_moment[i]
+
+
+@njit(**JIT)
+def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    """Velocity Verlet; velocity-dependent forces of the closing half kick use 2 P_half - P_n."""
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    Pp = np.empty((n, 2))
+    Lp = np.empty(n)
+    hh = 0.5 * h
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                p_old = P[i, c]
+                P[i, c] += hh * F[i, c]
+                Pp[i, c] = 2.0 * P[i, c] - p_old
+                x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+            l_old = L[i]
+            L[i] += hh * T[i]
+            Lp[i] = 2.0 * L[i] - l_old
+            angle[i] += h * L[i] * bodies.inv_moment[i]
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, Pp, Lp, v, w, F, T)
+        for i in range(n):
+            for c in range(2):
+                P[i, c] += hh * F[i, c]
+            L[i] += hh * T[i]
