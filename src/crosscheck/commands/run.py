@@ -56,8 +56,23 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "run.timeout)")
     p.add_argument("--progress", choices=("auto", "bar", "plain", "none"), default="auto",
                    help="progress display (default: a bar on a terminal, lines otherwise)")
+    p.add_argument("--engine-ref", action="append", default=[], metavar="NAME=MODULE:CLASS",
+                   help="use this adapter class for engine NAME (adapters under development, "
+                        "tests); repeatable")
     p.set_defaults(func=run)
     return p
+
+
+def _engine_refs(items: list[str]) -> dict[str, str]:
+    from crosscheck.runner.plan import UsageError
+
+    out = {}
+    for item in items:
+        name, _, ref = item.partition("=")
+        if not name or ":" not in ref:
+            raise UsageError(f"--engine-ref: expected NAME=MODULE:CLASS, got {item!r}")
+        out[name.strip()] = ref.strip()
+    return out
 
 
 def run(args) -> int:
@@ -82,7 +97,7 @@ def run(args) -> int:
     matrix = build_matrix(
         scenes, engines=parse_list(args.engines), integrators=parse_list(args.integrators),
         dts=parse_dts(args.dt), out=args.out, save_trajectories=args.save_trajectories,
-        timeout=args.timeout)
+        timeout=args.timeout, engine_refs=_engine_refs(args.engine_ref))
     if not matrix.cells:
         raise UsageError("no cells to run: no case lists any of the selected engines")
 

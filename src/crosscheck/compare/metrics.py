@@ -129,30 +129,31 @@ def downsample(t: np.ndarray, y: np.ndarray, points: int = SERIES_POINTS) -> dic
 
 
 # -- conservation ----------------------------------------------------------------------------------
-def energy_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None, out: MetricSet):
-    from crosscheck.quantities import total_energy
-
-    scale, source = scales.energy_scale(scene, traj, ref)
+def energy_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None, out: MetricSet,
+                   energy: np.ndarray, basis: Trajectory):
+    """``basis``: the samples the scale may use when there is no reference (before a blow-up)."""
+    scale, source = scales.energy_scale(scene, basis, ref)
     reason = scales.energy_not_conserved(scene)
-    e = total_energy(scene, traj)
+    e = energy
     if scale <= 0:
         out.add("energy_drift", None, meaningful=False,
                 note="no energy scale: nothing moves and there is no gravity")
-        return None, 0.0
+        return 0.0
     drift = np.abs(e - e[0]) / scale
     note = f"scale S_E = {scale:.6g} J (max kinetic energy, {source})"
     if reason:
         note = f"not conserved: {reason}; " + note
     out.add("energy_drift", float(np.max(drift)), meaningful=reason is None, note=note)
     out.add_series("energy_drift", traj.t, drift)
-    return e, scale
+    return scale
 
 
-def linear_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet):
+def linear_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
+                           scale_basis: Trajectory):
     from crosscheck.quantities import linear_momentum
 
     basis, reason = scales.linear_momentum_directions(scene)
-    scale = scales.momentum_scale(scene, traj)
+    scale = scales.momentum_scale(scene, scale_basis)
     p = linear_momentum(scene, traj)
     dp = p - p[0]
     if scale <= 0:
@@ -172,11 +173,12 @@ def linear_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet):
     out.add_series("linear_momentum_drift", traj.t, drift)
 
 
-def angular_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet):
+def angular_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
+                            scale_basis: Trajectory):
     from crosscheck.quantities import angular_momentum
 
     reason = scales.angular_momentum_not_conserved(scene)
-    scale = scales.angular_momentum_scale(scene, traj)
+    scale = scales.angular_momentum_scale(scene, scale_basis)
     if scale <= 0:
         out.add("angular_momentum_drift", None, meaningful=False, note="nothing moves")
         return
@@ -259,26 +261,35 @@ def out_of_plane_metric(traj: Trajectory, out: MetricSet):
 
 
 def blowup(scene: Scene, traj: Trajectory, energy: np.ndarray | None, out: MetricSet):
+    """First non-finite sample (the adapter's failure) or first runaway-energy sample."""
     failure = traj.failure
-    t_energy = None
+    candidates = []
+    if failure is not None:
+        t_fail = float(failure.get("time", traj.t[-1] if len(traj.t) else 0.0))
+        candidates.append((t_fail, str(failure.get("reason", "failure"))))
     if energy is not None and len(energy):
         bound = scales.available_energy(scene, traj)
         if bound > 0:
             over = np.nonzero(np.abs(energy - energy[0]) > scales.BLOWUP_FACTOR * bound)[0]
             if len(over):
-                t_energy = float(traj.t[over[0]])
-                reason_e = (f"energy error beyond {scales.BLOWUP_FACTOR:g} x the available "
-                            f"energy bound {bound:.6g} J")
-    if failure is not None:
-        t_fail = float(failure.get("time", traj.t[-1] if len(traj.t) else 0.0))
-        if t_energy is None or t_fail <= t_energy:
-            out.blowup_time, out.blowup_reason = t_fail, str(failure.get("reason", "failure"))
-        else:
-            out.blowup_time, out.blowup_reason = t_energy, reason_e
-    elif t_energy is not None:
-        out.blowup_time, out.blowup_reason = t_energy, reason_e
-    if out.blowup_time is not None:
-        out.add("blowup_time", out.blowup_time, note=out.blowup_reason or "")
+                candidates.append((float(traj.t[over[0]]),
+                                   f"energy error beyond {scales.BLOWUP_FACTOR:g} x the "
+                                   f"available energy bound {bound:.6g} J"))
+    if candidates:
+        out.blowup_time, out.blowup_reason = min(candidates)
+        out.add("blowup_time", out.blowup_time, note=out.blowup_reason)
+
+
+def _prefix(traj: Trajectory, t_end: float | None) -> Trajectory:
+    """The samples strictly before ``t_end`` (at least the first): what a scale may look at."""
+    if t_end is None:
+        return traj
+    n = max(1, int(np.searchsorted(traj.t, t_end, side="left")))
+    if n >= len(traj.t):
+        return traj
+    return Trajectory(t=traj.t[:n], com=traj.com[:n], vel=traj.vel[:n], omega=traj.omega[:n],
+                      quat=None if traj.quat is None else traj.quat[:n],
+                      angle=None if traj.angle is None else traj.angle[:n], meta=traj.meta)
 
 
 # -- everything ------------------------------------------------------------------------------------
@@ -290,20 +301,27 @@ def compute_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None = Non
     EXTRA_METRICS entry).
     """
     from crosscheck.compare.interp import resample
+    from crosscheck.quantities import total_energy
 
     out = MetricSet()
     if len(traj.t) == 0:
         blowup(scene, traj, None, out)
         return out
     ref_at = resample(ref, traj.t) if ref is not None else None
-    energy, e_scale = energy_metrics(scene, traj, ref_at, out)
-    linear_momentum_metric(scene, traj, out)
-    angular_momentum_metric(scene, traj, out)
+    energy = total_energy(scene, traj)
+    # Blow-up first: scales taken from the run itself must not include the runaway part,
+    # else a blown-up run would shrink its own drift.
+    blowup(scene, traj, energy, out)
+    basis = _prefix(traj, out.blowup_time)
+    e_scale = energy_metrics(scene, traj, ref_at, out, energy, basis)
+    linear_momentum_metric(scene, traj, out, basis)
+    angular_momentum_metric(scene, traj, out, basis)
     if ref_at is not None:
         reference_metrics(scene, traj, ref_at, out, energy, e_scale)
     out_of_plane_metric(traj, out)
     if extra is not None:
         for name, value in extra(scene, traj).items():
             out.add(name, value)
-    blowup(scene, traj, energy, out)
+    if "blowup_time" in out.metrics:  # keep it last in reports
+        out.metrics["blowup_time"] = out.metrics.pop("blowup_time")
     return out

@@ -14,7 +14,9 @@ Body size
 Energy scale
     ``S_E = max(max_t T(t), E_floor)`` with ``T`` the total kinetic energy, taken along the
     *reference* trajectory when the case has one that defines velocities (so a run that gains
-    energy does not inflate its own yardstick) and along the run itself otherwise. For a
+    energy does not inflate its own yardstick) and along the run itself otherwise (only its
+    samples before a blow-up, if it blew up; a run that gains energy steadily still inflates its
+    scale by the gain, a second-order effect: 18 % gain reads as 15 % drift). For a
     conservative system ``max_t T = E - min_t V``: the energy that actually moves between its
     kinetic and potential forms, independent of the potential's datum. ``E_floor = sum_i m_i |g|
     r_i`` (the work to lift each body by its own size; zero without gravity) keeps the scale
@@ -22,7 +24,8 @@ Energy scale
 
 Linear momentum scale
     ``S_P = max_t sum_i m_i (|v_i(t)| + |w_i(t)| r_i)``: each body's momentum plus what its rim
-    carries, so a pure spin with the centre of mass at rest still has a scale.
+    carries, so a pure spin with the centre of mass at rest still has a scale. Like ``S_L`` below
+    it is taken along the run's samples before any blow-up.
 
 Angular momentum scale (about the system's centre of mass ``c``)
     ``S_L = max_t sum_i (|I_i(t) w_i(t)| + m_i |x_i - c| |v_i - v_c| + m_i r_i |v_i|)``: the sum of

@@ -50,7 +50,7 @@ def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
     import matplotlib.pyplot as plt
 
     drawn = [c for c in cells if c.get("series")]
-    points = [c for c in cells if c.get("cost") is not None and _accuracy(c)[1] is not None]
+    points = [c for c in cells if (c.get("cost") or 0) > 0 and _accuracy(c)[1] is not None]
     if not drawn and not points:
         return None
     panels = []
