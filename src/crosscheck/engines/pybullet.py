@@ -80,9 +80,10 @@ INTEGRATOR_NOTES = {
                "exponential map, rotation per step capped at pi/4 rad",
 }
 
-# Raised far above any physical speed: PyBullet clamps every multibody velocity component to
-# maxJointVelocity (default 100) without warning. Finite so it stays plain JSON in meta.
-MAX_COORDINATE_VELOCITY = 1e30
+# PyBullet clamps every multibody velocity component to maxJointVelocity (default 100) without
+# warning. Lifted entirely: any finite cap also hides a blow-up (measured with a cap of 1e30: an
+# unstable spring froze at |x| ~ 1e27 instead of overflowing to a reported non-finite state).
+MAX_COORDINATE_VELOCITY = math.inf
 # Bullet's own default (gContactBreakingThreshold). The value is global to the process and
 # survives a new connection (ENGINES.md trap 10): set on every run so no earlier run leaks in.
 CONTACT_BREAKING_THRESHOLD = 0.02
@@ -409,15 +410,19 @@ class PybulletModel:
         _p.setGravity(*g3, physicsClientId=cid)
 
     def base_poses(self) -> list:
-        return [_p.getBasePositionAndOrientation(b.uid, physicsClientId=self.cid)
-                for b in self.bodies]
+        """The pose PyBullet reports for each base (the inertial frame); remembered for the probe.
+        """
+        self._build_poses = [_p.getBasePositionAndOrientation(b.uid, physicsClientId=self.cid)
+                             for b in self.bodies]
+        return self._build_poses
 
     def probe(self) -> dict[str, Any]:
         """One force-free step at high speed: every velocity must come out unchanged.
 
         Measures what PyBullet's API does not report back (damping, the velocity clamp, joint
-        motors and joint damping of the planar chain). Leaves the bodies to be reset by
-        ``set_initial_state(poses)``; call it before gravity is set (it is 0 after building).
+        motors and joint damping of the planar chain), then takes one step at rest (``_settle``).
+        Leaves the bodies to be reset by ``set_initial_state(poses)``; call it after
+        ``base_poses()`` and before gravity is set (it is 0 after building).
         """
         cid = self.cid
         before = []
@@ -448,6 +453,7 @@ class PybulletModel:
                 vv, ww = _p.getBaseVelocity(b.uid, physicsClientId=cid)
                 lin.append(np.linalg.norm(np.subtract(vv, v0[:3])) / np.linalg.norm(v0[:3]))
                 ang.append(np.linalg.norm(np.subtract(ww, v0[3:])) / np.linalg.norm(v0[3:]))
+        self._settle()
         worst_lin = float(max(lin, default=0.0))
         worst_ang = float(max(ang, default=0.0))
         return {
@@ -458,6 +464,27 @@ class PybulletModel:
             "max_relative_change_angular": worst_ang,
             "neutral": bool(worst_lin <= PROBE_TOLERANCE and worst_ang <= PROBE_TOLERANCE),
         }
+
+    def _settle(self) -> None:
+        """One step at rest in the build pose, to refresh what Bullet caches per body.
+
+        A maximal-coordinate body keeps its world inverse inertia from the last step it took
+        (``changeDynamics`` and ``resetBasePositionAndOrientation`` do not refresh it): after the
+        probe it belongs to the probe's end pose, and before any step to the shapeless default.
+        The first real step would turn torques with that stale tensor (measured: a torque about a
+        principal axis lost its whole first step). At rest, with no gravity and no force, the
+        step moves nothing and recomputes the tensor for the true pose.
+        """
+        cid = self.cid
+        for b, pose in zip(self.bodies, self._build_poses, strict=True):
+            if self.planar_joints:
+                for j in range(3):
+                    _p.resetJointState(b.uid, j, 0.0, 0.0, physicsClientId=cid)
+            else:
+                _p.resetBasePositionAndOrientation(b.uid, pose[0], pose[1], physicsClientId=cid)
+                _p.resetBaseVelocity(b.uid, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0],
+                                     physicsClientId=cid)
+        _p.stepSimulation(physicsClientId=cid)
 
     def read_raw(self) -> list[float]:
         """The current state as one flat row per body (cheap: recorded, converted later).
@@ -649,7 +676,7 @@ class PybulletModel:
             "bodies": bodies,
             "damping": {"set": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
                         "readable": False, "checked_by": "probe"},
-            "max_joint_velocity": {"set": MAX_COORDINATE_VELOCITY, "readable": False,
+            "max_joint_velocity": {"set": "inf", "readable": False,
                                    "checked_by": "probe"},
             "sleeping": {"set": "ACTIVATION_STATE_DISABLE_SLEEPING", "readable": False},
             "contact_breaking_threshold": {"set": CONTACT_BREAKING_THRESHOLD, "readable": False,
