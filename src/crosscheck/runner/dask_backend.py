@@ -53,14 +53,13 @@ class DaskBackend:
         self._futures[fut] = task
 
     def poll(self, timeout: float) -> list[tuple[dict[str, Any], dict[str, Any]]]:
-        from distributed import wait
-
         if not self._futures:
             return []
-        try:
-            wait(list(self._futures), timeout=timeout, return_when="FIRST_COMPLETED")
-        except TimeoutError:
-            pass
+        # Futures report done() from the client's own event loop; a short sleep loop avoids
+        # distributed.wait(), which wants a default client (and we do not set one globally).
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not any(f.done() for f in self._futures):
+            time.sleep(0.05)
         done = []
         for fut in [f for f in self._futures if f.done()]:
             task = self._futures.pop(fut)
