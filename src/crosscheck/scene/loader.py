@@ -418,7 +418,7 @@ def _orientation(f: Fields) -> np.ndarray:
             raise CaseError(f.file, f"{field}.axis", "a non-zero axis", axis.tolist())
         return axis_angle_to_quat(axis / np.max(np.abs(axis)), angle)
     q = check_vector(raw, 4, f.file, field)
-    norm = float(np.linalg.norm(q))
+    norm = _safe_norm(q)
     if abs(norm - 1.0) > QUATERNION_UNIT_TOLERANCE:
         raise CaseError(f.file, field,
                         f"a unit quaternion [w, x, y, z] (|q| within {QUATERNION_UNIT_TOLERANCE}"
