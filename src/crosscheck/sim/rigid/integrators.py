@@ -117,8 +117,9 @@ register(Integrator(
 register(Integrator(
     "implicit_euler", 1, False, "exp", 1,
     "linearised backward Euler on the generalised velocities with the spring and drag "
-    "Jacobians (stable for stiff springs at any step); q <- exp(h w1) q with the end-of-step "
-    "w1 from the start-of-step inertia, so the free rotor itself is not implicit",
+    "Jacobians (stable for stiff springs at any step); the orientation is backward Euler as "
+    "well, q1 = exp(h w(q1, L1)) q0 solved by Newton per body, which damps the free rotor's "
+    "perturbations instead of amplifying them (|q| = 1 through the exponential map)",
     implicit.advance_implicit_3d, implicit.advance_implicit_2d))
 
 DEFAULT = next(iter(INTEGRATORS))
