@@ -694,6 +694,8 @@ class PybulletModel:
 
 class PybulletEngine(EngineBase):
     name = "pybullet"
+    # (global order, update under constant acceleration), read by the conformance suite.
+    integrator_schemes = {"multibody": (1, "velocity_first"), "maximal": (1, "velocity_first")}
 
     def capabilities(self) -> Capabilities:
         return Capabilities(

@@ -215,6 +215,8 @@ class PymunkModel:
 
 class PymunkEngine(EngineBase):
     name = "pymunk"
+    # (global order, update under constant acceleration), read by the conformance suite.
+    integrator_schemes = {"position_first": (1, "position_first")}
 
     def capabilities(self) -> Capabilities:
         return Capabilities(
