@@ -140,6 +140,7 @@ class FluidSpec:
     cfl: float = 1.0
     cfl_limit: float = 2.0
     redistance_every: int = 1
+    redistancing: str = "fast_sweeping"
     pressure_tolerance: float = 1e-6
     min_volume_fraction: float = 0.5
     prescribed_velocity: Rotation | None = None
@@ -258,6 +259,8 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
     if cfl_limit < cfl:
         raise f.error("cfl_limit", f"a number >= fluid.cfl ({cfl})", cfl_limit)
     redistance_every = f.integer("redistance_every", 1, minimum=1)
+    redistancing = f.string("redistancing", "fast_sweeping",
+                            choices=("fast_sweeping", "fast_marching"))
     ptol = f.number("pressure_tolerance", 1e-6, positive=True)
     min_vol = f.number("min_volume_fraction", 0.5, nonnegative=True)
 
@@ -297,6 +300,7 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
     return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
                      obstacles=obstacles, initial=tuple(parts), density=density,
                      kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit,
-                     redistance_every=redistance_every, pressure_tolerance=ptol,
+                     redistance_every=redistance_every, redistancing=redistancing,
+                     pressure_tolerance=ptol,
                      min_volume_fraction=min_vol, prescribed_velocity=prescribed,
                      particles=particles, output=output)

@@ -313,3 +313,92 @@ def empty_like_padded_u(u: np.ndarray) -> np.ndarray:
 
 def empty_like_padded_v(v: np.ndarray) -> np.ndarray:
     return np.empty((v.shape[0] + 2, v.shape[1]))
+
+
+@njit(cache=True, inline="always")
+def _sweep_update(d, frozen, i, j, h, cap):
+    if frozen[i, j]:
+        return
+    nx, ny = d.shape
+    a = cap
+    if i > 0:
+        a = d[i - 1, j]
+    if i < nx - 1 and d[i + 1, j] < a:
+        a = d[i + 1, j]
+    b = cap
+    if j > 0:
+        b = d[i, j - 1]
+    if j < ny - 1 and d[i, j + 1] < b:
+        b = d[i, j + 1]
+    if abs(a - b) >= h:
+        new = min(a, b) + h
+    else:
+        new = 0.5 * (a + b + math.sqrt(2.0 * h * h - (a - b) * (a - b)))
+    if new < d[i, j]:
+        d[i, j] = new
+
+
+@njit(cache=True)
+def redistance_sweep(phi, dx, band_cells, iterations):
+    """Signed distance by fast sweeping (Zhao 2005) within ``band_cells`` of the surface.
+
+    The cells on either side of a sign change keep their advected values (they define where the
+    surface is, to sub-cell accuracy, and are already close to distances after one step); only
+    the others are recomputed from them with the Godunov upwind update, in the 4 alternating
+    sweep orders, ``iterations`` times. Freezing the interface cells is what makes the
+    redistancing itself volume-neutral: re-initialising them (as scikit-fmm does) moved the zero
+    contour of an exact circle by up to 0.23 cells and lost 0.05 % of its area per call.
+    Beyond the band values are capped at ``band_cells + 1`` cells with their sign kept.
+    """
+    nx, ny = phi.shape
+    cap = (band_cells + 1.0) * dx
+    d = np.empty((nx, ny))
+    frozen = np.zeros((nx, ny), np.bool_)
+    i0, i1, j0, j1 = nx, -1, ny, -1
+    for i in range(nx):
+        for j in range(ny):
+            p = phi[i, j]
+            f = False
+            if i > 0 and (p < 0.0) != (phi[i - 1, j] < 0.0):
+                f = True
+            elif i < nx - 1 and (p < 0.0) != (phi[i + 1, j] < 0.0):
+                f = True
+            elif j > 0 and (p < 0.0) != (phi[i, j - 1] < 0.0):
+                f = True
+            elif j < ny - 1 and (p < 0.0) != (phi[i, j + 1] < 0.0):
+                f = True
+            # cells far outside the band are marked frozen at the cap: no sweep work there
+            frozen[i, j] = f or abs(p) > cap + 2.0 * dx
+            if f:
+                d[i, j] = min(abs(p), cap)
+                i0 = min(i0, i)
+                i1 = max(i1, i)
+                j0 = min(j0, j)
+                j1 = max(j1, j)
+            else:
+                d[i, j] = cap
+    if i1 < 0:
+        return phi.copy()
+    w = int(band_cells) + 2
+    i0 = max(i0 - w, 0)
+    j0 = max(j0 - w, 0)
+    i1 = min(i1 + w, nx - 1)
+    j1 = min(j1 + w, ny - 1)
+    for _ in range(iterations):
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                _sweep_update(d, frozen, i, j, dx, cap)
+        for i in range(i1, i0 - 1, -1):
+            for j in range(j0, j1 + 1):
+                _sweep_update(d, frozen, i, j, dx, cap)
+        for i in range(i1, i0 - 1, -1):
+            for j in range(j1, j0 - 1, -1):
+                _sweep_update(d, frozen, i, j, dx, cap)
+        for i in range(i0, i1 + 1):
+            for j in range(j1, j0 - 1, -1):
+                _sweep_update(d, frozen, i, j, dx, cap)
+    out = np.empty((nx, ny))
+    for i in range(nx):
+        for j in range(ny):
+            out[i, j] = -d[i, j] if phi[i, j] < 0.0 else d[i, j]
+    return out

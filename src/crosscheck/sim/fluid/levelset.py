@@ -13,16 +13,24 @@ from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid.pressure import AIR
 
 
-def redistance(phi: np.ndarray, dx: float, band_cells: float) -> np.ndarray:
-    """Fast-marching redistancing (scikit-fmm, second order) restricted to a narrow band.
+def redistance(phi: np.ndarray, dx: float, band_cells: float,
+               method: str = "fast_sweeping") -> np.ndarray:
+    """Restore ``|grad phi| = 1`` within ``band_cells`` of the surface.
+
+    ``fast_sweeping`` (default): compiled fast sweeping that keeps the cells next to the surface
+    as they are (see :func:`kernels.redistance_sweep`), so redistancing does not move the surface.
+    ``fast_marching``: scikit-fmm, second order, narrow band; its own re-initialisation of the
+    cells next to the surface shrinks convex shapes (0.05 % of a 15-cell circle's area per call),
+    which over hundreds of steps is most of the plain level set's volume loss.
 
     Only the band is needed: pressure looks at the sign and at the cells next to the surface,
     extension and advection reach at most ``band_cells`` cells from it. Values beyond the band are
-    set to +-(band + 1) cells, which keeps their sign. The zero contour is not moved except by the
-    interface-adjacent reinitialisation of the fast marching method itself.
+    set to +-(band + 1) cells, which keeps their sign.
     """
     if not (np.any(phi < 0) and np.any(phi > 0)):
         return phi
+    if method == "fast_sweeping":
+        return K.redistance_sweep(phi, dx, float(band_cells), 2)
     width = band_cells * dx
     d = skfmm.distance(phi, dx=dx, order=2, narrow=width)
     if isinstance(d, np.ma.MaskedArray):

@@ -18,10 +18,12 @@ producing non-finite values stops it and is reported in ``FluidRecord.failure``.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from crosscheck.scene.fluid import FluidSpec, Layer
@@ -155,7 +157,7 @@ class FluidState:
         phi = np.ascontiguousarray(phi, dtype=float)
         if any(isinstance(p.shape, Layer) for p in spec.initial) or len(spec.initial) > 1:
             # unions, differences and wavy layers are not exact distances: redistance once
-            phi = LS.redistance(phi, self.dx, max(self.nx, self.ny))
+            phi = LS.redistance(phi, self.dx, max(self.nx, self.ny), self.spec.redistancing)
         return phi
 
     def classify(self) -> None:
@@ -215,7 +217,7 @@ class FluidState:
             if (self.step_index + 1) % spec.redistance_every == 0:
                 if self.has_solid:
                     K.fill_solid(self.phi, self.solid, self.band_cells)
-                self.phi = LS.redistance(self.phi, dx, self.redist_cells)
+                self.phi = LS.redistance(self.phi, dx, self.redist_cells, spec.redistancing)
             t2 = time.perf_counter()
             timers["redistancing"] += t2 - t1
             if self.particles is not None:
@@ -341,12 +343,36 @@ def _scene_gravity(scene: Any, dim: int) -> np.ndarray:
     return np.zeros(dim) if g is None else np.asarray(g, float)
 
 
+def fluid_threads() -> int:
+    """Threads of the parallel kernels: ``CROSSCHECK_FLUID_THREADS`` (default 1).
+
+    One by default: on the project's 2-core machine other runs (pytest-xdist workers, other
+    engines) share the cores, and numba's parallel loops then wait on each other at every
+    barrier; measured on the cavity, a contended 2-thread run was 6x slower than a serial one.
+    The benchmark reports both.
+    """
+    try:
+        n = int(os.environ.get("CROSSCHECK_FLUID_THREADS", "1"))
+    except ValueError:
+        n = 1
+    return max(1, min(n, numba.config.NUMBA_NUM_THREADS))
+
+
 def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None) -> FluidRecord:
     """Run ``scene.fluid`` with the named in-house integrator.
 
     ``dt=None``: adaptive step ``min(run.dt, cfl dx / u_max)``, shortened to land on the sample
     times. A number: that fixed step (a sweep), and exceeding ``fluid.cfl_limit`` is a failure.
     """
+    previous = numba.get_num_threads()
+    numba.set_num_threads(fluid_threads())
+    try:
+        return _run_fluid(scene, integrator, dt)
+    finally:
+        numba.set_num_threads(previous)
+
+
+def _run_fluid(scene: Any, integrator: str | None, dt: float | None) -> FluidRecord:
     spec: FluidSpec = scene.fluid
     name = integrator or DEFAULT_INTEGRATOR
     if name not in INTEGRATORS:
@@ -471,6 +497,8 @@ def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None
         "density": spec.density, "kinematic_viscosity": spec.kinematic_viscosity,
         "gravity": gravity.tolist(), "sample_every": sample_every,
         "particles": st.particles is not None,
+        "threads": numba.get_num_threads(),
+        "redistancing": spec.redistancing,
         "warnings": [w for w in (st.lid_warning,) if w],
     }
     return FluidRecord(
