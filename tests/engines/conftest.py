@@ -6,13 +6,16 @@
   is a failure, not a skip.
 * Tests ask for ``engine_name`` (one per adapter) or ``engine_name, integrator`` (one per adapter
   and each integrator it declares), optionally restricted with ``@pytest.mark.dimension(d)`` to
-  adapters that support d-dimensional scenes.
+  adapters that support d-dimensional scenes; ``engine`` is the adapter instance.
 * ``SCHEMES`` says which discrete scheme each integrator is, which is what the suite's tolerances
   are derived from. An adapter may declare its own as a class attribute
   ``integrator_schemes = {"name": (order, "velocity_first" | "position_first" | "exact")}``; an
   integrator known to neither is skipped with a reason naming what to add.
-* ``newton_euler`` is an engine-independent reference: the Newton-Euler equations of the scene's
-  bodies (gravity, springs, drag, loads) integrated by SciPy's DOP853 to 1e-12.
+* ``harness`` (a fixture, so test modules never import this file) bundles ``run`` (run a scene,
+  skipping with the adapter's reason when it is not applicable), ``scheme`` (the scheme of an
+  integrator applicable to a scene, or a skip) and ``reference``: ``newton_euler``, an
+  engine-independent reference, the Newton-Euler equations of the scene's bodies (gravity,
+  springs, drag, loads) integrated by SciPy's DOP853 to 1e-12.
 """
 
 from __future__ import annotations
@@ -130,8 +133,24 @@ def engine(engine_name):
     return get_engine(engine_name)
 
 
-@pytest.fixture
-def scheme(engine, integrator) -> Scheme:
+def require_applicable(engine, scene: Scene, integrator: str) -> None:
+    """Skip, with the adapter's own reason, when it cannot run this scene and integrator."""
+    reason = engine.not_applicable(scene, integrator)
+    if reason is not None:
+        pytest.skip(f"{engine.name}/{integrator}: not applicable: {reason}")
+
+
+def run_scene(engine, scene: Scene, integrator: str, dt: float | None = None):
+    """Run (skipping when not applicable); a failed run fails the test."""
+    require_applicable(engine, scene, integrator)
+    traj = engine.run(scene, integrator, scene.run.dt if dt is None else dt)
+    assert traj.failure is None, f"{engine.name}/{integrator} failed: {traj.failure}"
+    return traj
+
+
+def require_scheme(engine, scene: Scene, integrator: str) -> Scheme:
+    """The integrator's scheme, once it is known to apply to the scene; else a skip."""
+    require_applicable(engine, scene, integrator)
     found = scheme_of(engine, integrator)
     if found is None:
         pytest.skip(f"no discrete scheme known for {engine.name}.{integrator}: declare "
@@ -140,18 +159,24 @@ def scheme(engine, integrator) -> Scheme:
     return found
 
 
-def run_scene(engine, scene: Scene, integrator: str, dt: float | None = None):
-    """Run, turning "not applicable" into a skip with the adapter's own reason."""
-    reason = engine.not_applicable(scene, integrator)
-    if reason is not None:
-        pytest.skip(f"{engine.name}/{integrator}: not applicable: {reason}")
-    traj = engine.run(scene, integrator, scene.run.dt if dt is None else dt)
-    assert traj.failure is None, f"{engine.name}/{integrator} failed: {traj.failure}"
-    return traj
-
-
 def with_run(scene: Scene, **changes) -> Scene:
     return replace(scene, run=replace(scene.run, **changes))
+
+
+class Harness:
+    run = staticmethod(run_scene)
+    applicable = staticmethod(require_applicable)
+    scheme = staticmethod(require_scheme)
+    with_run = staticmethod(with_run)
+    reference = staticmethod(lambda scene, times: newton_euler(scene, times))
+    VELOCITY_FIRST = VELOCITY_FIRST
+    POSITION_FIRST = POSITION_FIRST
+    EXACT = EXACT
+
+
+@pytest.fixture
+def harness() -> type[Harness]:
+    return Harness
 
 
 # -- independent reference ---------------------------------------------------------------------

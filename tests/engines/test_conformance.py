@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXACT, POSITION_FIRST, VELOCITY_FIRST, newton_euler, run_scene, with_run
 
 from crosscheck import quantities
 from crosscheck.engines import get_engine
@@ -89,10 +89,10 @@ ROUND_TRIP_ATOL = 1e-12
 
 
 @pytest.mark.dimension(3)
-def test_round_trip_3d(engine, engine_name):
+def test_round_trip_3d(engine, engine_name, harness):
     scene = _case("round-trip", 3, 1e-3, 1e-3, 1e-3, _body3d())
     integrator = engine.capabilities().default_integrator
-    traj = run_scene(engine, scene, integrator)
+    traj = harness.run(engine, scene, integrator)
     body = scene.bodies[0]
     assert traj.t[0] == 0.0
     np.testing.assert_allclose(traj.com[0, 0], body.com_world(), rtol=0, atol=ROUND_TRIP_ATOL)
@@ -108,7 +108,7 @@ def test_round_trip_3d(engine, engine_name):
 
 
 @pytest.mark.dimension(2)
-def test_round_trip_2d(engine, engine_name):
+def test_round_trip_2d(engine, engine_name, harness):
     scene = _case("round-trip-2d", 2, 1e-3, 1e-3, 1e-3, """
 [[bodies]]
 name = "plate"
@@ -121,7 +121,7 @@ velocity = [1.0, -2.0]
 angular_velocity = -7.0
 """)
     integrator = engine.capabilities().default_integrator
-    traj = run_scene(engine, scene, integrator)
+    traj = harness.run(engine, scene, integrator)
     body = scene.bodies[0]
     np.testing.assert_allclose(traj.com[0, 0], body.com_world(), rtol=0, atol=ROUND_TRIP_ATOL)
     turns = (traj.angle[0, 0] - body.angle) / (2 * math.pi)
@@ -144,26 +144,30 @@ def _free_flight(dt):
 
 
 @pytest.mark.dimension(3)
-def test_free_flight_spin(engine, engine_name, integrator, scheme):
-    p = scheme.order
+def test_free_flight_spin(engine, engine_name, integrator, harness):
+    p = harness.scheme(engine, _free_flight(1e-3), integrator).order
     errors = {}
     for dt in (1e-3, 5e-4):
         scene = _free_flight(dt)
         body = scene.bodies[0]
-        traj = run_scene(engine, scene, integrator, dt)
+        traj = harness.run(engine, scene, integrator, dt)
         assert traj.t[-1] == pytest.approx(1.0)
         t = traj.t
 
         # World angular momentum and angular velocity. In steady spin about a principal axis
         # the gyroscopic term w x Iw vanishes, so every consistent integrator keeps omega fixed
-        # and turns the body about omega, leaving L = I_world omega unchanged: only round-off
-        # remains, ~ steps * eps * 10 = 2000 * 2.2e-16 * 10 ~ 4e-12 relative. A body-local
-        # omega read as world, or damping left on, errs by O(1).
+        # and turns the body about omega, leaving L = I_world omega unchanged in exact
+        # arithmetic. What remains is round-off, ~1e-15 relative per step, which an explicit
+        # scheme amplifies through the nutation mode (rate W = w sqrt((I3-I1)(I3-I2)/(I1 I2))
+        # = 89 rad/s) by (1 + (h W)^2)^(N/2) = exp(T h W^2 / 2) ~ 50, plus the tolerance an
+        # iterative implicit solve stops at: 2000 * 1e-15 * 50 ~ 1e-10 (measured up to 1.3e-10;
+        # MuJoCo and PyBullet 1e-14). Limit 1e-8 relative: a body-local omega read as world
+        # errs by O(1), default damping by 1e-2 after 1 s.
         L0 = body.inertia_world() @ body.angular_velocity
         L = quantities.angular_momentum(scene, traj, about="com")
-        assert np.max(np.linalg.norm(L - L0, axis=1)) <= 1e-11 * np.linalg.norm(L0)
+        assert np.max(np.linalg.norm(L - L0, axis=1)) <= 1e-8 * np.linalg.norm(L0)
         np.testing.assert_allclose(traj.omega[:, 0], np.broadcast_to(body.angular_velocity,
-                                   (len(t), 3)), rtol=0, atol=1e-11 * SPIN)
+                                   (len(t), 3)), rtol=0, atol=1e-8 * SPIN)
 
         # Centre-of-mass path. An engine that integrates the centre of mass moves it exactly;
         # one that integrates the body origin (MuJoCo's free joint) carries the centre of mass
@@ -193,6 +197,8 @@ def test_free_flight_spin(engine, engine_name, integrator, scheme):
 
 # -- (c) free fall: each integrator's own discrete solution ------------------------------------
 G = 9.81
+# The discrete forms of the free-fall update (conftest.SCHEMES names them per integrator).
+VELOCITY_FIRST, POSITION_FIRST, EXACT = "velocity_first", "position_first", "exact"
 
 
 def _drop(fall: str, h: float, n: np.ndarray) -> np.ndarray:
@@ -220,7 +226,7 @@ FALL_ATOL = 1e-9
 
 
 @pytest.mark.dimension(3)
-def test_free_fall_3d(engine, engine_name, integrator, scheme):
+def test_free_fall_3d(engine, engine_name, integrator, harness):
     h = 1e-3
     scene = _case("free-fall", 3, 1.0, h, 0.01, """
 [[bodies]]
@@ -230,7 +236,8 @@ mass = 1.0
 position = [0.0, 0.0, 10.0]
 """ + _body3d(name="offset", velocity=(0.5, -0.25, 0.0), omega=(0.0, 0.0, 0.0)),
         effects=f"gravity = [0.0, 0.0, {-G}]")
-    traj = run_scene(engine, scene, integrator, h)
+    scheme = harness.scheme(engine, scene, integrator)
+    traj = harness.run(engine, scene, integrator, h)
     n = np.rint(traj.t / h)
     drop = _drop(scheme.fall, h, n)
     for i, body in enumerate(scene.bodies):
@@ -246,7 +253,7 @@ position = [0.0, 0.0, 10.0]
 
 
 @pytest.mark.dimension(2)
-def test_free_fall_2d(engine, engine_name, integrator, scheme):
+def test_free_fall_2d(engine, engine_name, integrator, harness):
     h = 1e-3
     scene = _case("free-fall-2d", 2, 1.0, h, 0.01, """
 [[bodies]]
@@ -259,7 +266,8 @@ orientation = 0.4
 velocity = [1.0, 0.0]
 angular_velocity = 6.0
 """, effects=f"gravity = [0.0, {-G}]")
-    traj = run_scene(engine, scene, integrator, h)
+    scheme = harness.scheme(engine, scene, integrator)
+    traj = harness.run(engine, scene, integrator, h)
     body = scene.bodies[0]
     n = np.rint(traj.t / h)
     start = body.com_world()
@@ -273,10 +281,10 @@ angular_velocity = 6.0
 
 
 @pytest.mark.dimension(3)
-def test_no_gravity_means_no_gravity(engine, engine_name):
+def test_no_gravity_means_no_gravity(engine, engine_name, harness):
     # MuJoCo's default gravity is -9.81: a scene without gravity must not fall in any engine.
     scene = _case("no-gravity", 3, 0.5, 1e-3, 0.05, _body3d(omega=(0.0, 0.0, 0.0)))
-    traj = run_scene(engine, scene, engine.capabilities().default_integrator)
+    traj = harness.run(engine, scene, engine.capabilities().default_integrator)
     body = scene.bodies[0]
     exact = body.com_world() + traj.t[:, None] * body.velocity
     np.testing.assert_allclose(traj.com[:, 0], exact, rtol=0, atol=1e-12)
@@ -286,27 +294,29 @@ def test_no_gravity_means_no_gravity(engine, engine_name):
 
 # -- (d) the tennis racket -----------------------------------------------------------------------
 def _tennis_racket(duration=5.0):
-    return with_run(load_case(CASES / "rigid3d" / "tennis_racket.toml"), duration=duration)
+    scene = load_case(CASES / "rigid3d" / "tennis_racket.toml")
+    return replace(scene, run=replace(scene.run, duration=duration))
 
 
 @pytest.mark.dimension(3)
-def test_tennis_racket_fourth_order_tracks_reference(engine, engine_name, integrator, scheme):
+def test_tennis_racket_fourth_order_tracks_reference(engine, engine_name, integrator, harness):
     # Spin about the intermediate axis, perturbed: the flip amplifies errors, so agreement over
     # 5 s (two flips) needs a fourth-order method. The reference is the Newton-Euler equations
     # to 1e-12 (conftest.newton_euler). MuJoCo RK4 at dt = 1e-3 measures 3e-8 rad; the issue's
     # bar for two RK4 engines agreeing is 1e-6 rad, so each must be within it of the truth.
+    scene = _tennis_racket()
+    scheme = harness.scheme(engine, scene, integrator)
     if scheme.order < 4:
         pytest.skip(f"{engine_name}.{integrator} is order {scheme.order}; the 1e-6 rad bar is "
                     "for fourth-order integrators")
-    scene = _tennis_racket()
-    traj = run_scene(engine, scene, integrator)
-    _, q_ref, _, w_ref = newton_euler(scene, traj.t)
+    traj = harness.run(engine, scene, integrator)
+    _, q_ref, _, w_ref = harness.reference(scene, traj.t)
     assert np.max(quat_angle_between(traj.quat[:, 0], q_ref[:, 0])) <= 1e-6
     # The flip happened (the test is not trivially passed by a body that never turned).
     assert np.max(quat_angle_between(traj.quat[:, 0], traj.quat[:1, 0])) > 3.0
 
 
-def test_tennis_racket_mujoco_rk4_agrees_with_inhouse_rk4():
+def test_tennis_racket_mujoco_rk4_agrees_with_inhouse_rk4(harness):
     engines = {}
     for name in ("mujoco", "inhouse"):
         try:
@@ -316,7 +326,7 @@ def test_tennis_racket_mujoco_rk4_agrees_with_inhouse_rk4():
                 raise
             pytest.skip(f"crosscheck.engines.{name} does not exist yet")
     scene = _tennis_racket()
-    trajs = {name: run_scene(e, scene, "rk4") for name, e in engines.items()}
+    trajs = {name: harness.run(e, scene, "rk4") for name, e in engines.items()}
     a, b = trajs["mujoco"], trajs["inhouse"]
     np.testing.assert_array_equal(a.t, b.t)
     assert np.max(quat_angle_between(a.quat[:, 0], b.quat[:, 0])) <= 1e-6

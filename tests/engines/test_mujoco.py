@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
-from conftest import newton_euler, with_run
 
 from crosscheck import quantities
 from crosscheck.engines import get_engine
@@ -284,7 +284,7 @@ def test_linear_momentum_drift_with_offset_com_is_first_order(integrator):
     assert drift(aligned, integrator, 1e-3) < 1e-14
 
 
-def test_aligned_frame_round_trips_and_tracks_reference():
+def test_aligned_frame_round_trips_and_tracks_reference(harness):
     # align_free changes MuJoCo's body frame, not the reported one: the declared-frame state
     # comes back exactly, and the motion (RK4) is the reference's.
     scene = scene3d(duration=1.0, options="[engine_options.mujoco]\nalign_free = true")
@@ -294,17 +294,23 @@ def test_aligned_frame_round_trips_and_tracks_reference():
     assert min(np.abs(traj.quat[0, 0] - body.orientation).max(),
                np.abs(traj.quat[0, 0] + body.orientation).max()) < 1e-12
     np.testing.assert_allclose(traj.omega[0, 0], body.angular_velocity, rtol=0, atol=1e-12)
-    x, q, v, w = newton_euler(scene, traj.t)
+    x, q, v, w = harness.reference(scene, traj.t)
     assert np.max(np.abs(traj.com - x)) < 1e-9
     assert np.max(quat_angle_between(traj.quat, q)) < 1e-9
     assert traj.meta["effective"]["bodies"][0]["frame"].startswith("aligned")
 
 
 # -- springs, drag, loads against the Newton-Euler reference -------------------------------------
-def _errors(scene, integrator, dt):
+@pytest.fixture
+def errors(harness):
+    """(trajectory, max error of position and orientation against the Newton-Euler reference)."""
+    return lambda scene, integrator, dt: _errors(harness.reference, scene, integrator, dt)
+
+
+def _errors(reference, scene, integrator, dt):
     traj = ENGINE.run(scene, integrator, dt)
     assert traj.failure is None
-    x, q, v, w = newton_euler(scene, traj.t)
+    x, q, v, w = reference(scene, traj.t)
     if scene.dimension == 2:
         angle = np.unwrap(2 * np.arctan2(q[..., 3], q[..., 0]), axis=0)
         return traj, max(np.max(np.abs(traj.com - x[..., :2])),
@@ -324,15 +330,15 @@ rest_length = 0.2
 
 
 @pytest.mark.parametrize("align", [False, True])
-def test_spring_is_a_tendon_between_the_declared_points(align):
+def test_spring_is_a_tendon_between_the_declared_points(align, errors):
     # Attachment point off the centre of mass, on a rotated body with a full inertia: the site
     # must sit at the declared body-frame point (a site placed relative to the centre of mass
     # would be 0.06 m off). Tendons act inside each RK4 stage, so the error is fourth order:
     # measured ~1e-9 at dt = 1e-3; the limit allows 100x, and the order is checked.
     options = "[engine_options.mujoco]\nalign_free = true" if align else ""
     scene = scene3d(effects=SPRING, options=options)
-    traj, coarse = _errors(scene, "rk4", 1e-3)
-    _, fine = _errors(scene, "rk4", 5e-4)
+    traj, coarse = errors(scene, "rk4", 1e-3)
+    _, fine = errors(scene, "rk4", 5e-4)
     assert coarse < 1e-7
     assert math.log2(coarse / fine) > 3.5
     spring = traj.meta["effective"]["springs"][0]
@@ -340,19 +346,20 @@ def test_spring_is_a_tendon_between_the_declared_points(align):
                       "springlength": [0.2, 0.2]}
 
 
-def test_two_body_spring_case_conserves_momentum_and_converges():
+def test_two_body_spring_case_conserves_momentum_and_converges(errors):
     # The committed case: an off-centre spring between two tumbling boxes. Tendon forces are
     # equal and opposite: linear momentum to round-off (1e-13 of ~0.5 kg m/s) for every
     # integrator; RK4 converges to the reference at fourth order.
-    scene = with_run(load_case(CASES / "rigid3d" / "two_body_spring.toml"), duration=2.0)
+    scene = load_case(CASES / "rigid3d" / "two_body_spring.toml")
+    scene = replace(scene, run=replace(scene.run, duration=2.0))
     for integrator in INTEGRATORS:
         if integrator == "discrete":
             continue  # implicit tendon stiffness (h^2 K) is applied per dof: checked below
         traj = ENGINE.run(scene, integrator, 1e-3)
         p = quantities.linear_momentum(scene, traj)
         assert np.max(np.abs(p - p[0])) < 1e-13, integrator
-    _, coarse = _errors(scene, "rk4", 1e-3)
-    _, fine = _errors(scene, "rk4", 5e-4)
+    _, coarse = errors(scene, "rk4", 1e-3)
+    _, fine = errors(scene, "rk4", 5e-4)
     assert coarse < 1e-4
     assert math.log2(coarse / fine) > 3.5
 
@@ -374,13 +381,13 @@ angular = 0.02
 """
 
 
-def test_drag_on_centred_body_is_exact_joint_damping():
+def test_drag_on_centred_body_is_exact_joint_damping(errors):
     # Centre of mass at the origin: joint damping on the free joint is exactly -c v and -c_a w
     # (isotropic damping of the body-local omega is the same in any frame), evaluated in every
     # RK4 stage: agreement with the reference at its own 1e-12 level (measured 8e-12; the
     # per-step route errs by 1e-5 on this scene, see the next tests).
     scene = scene3d(com=[0, 0, 0], effects=DRAG)
-    traj, coarse = _errors(scene, "rk4", 1e-3)
+    traj, coarse = errors(scene, "rk4", 1e-3)
     body = traj.meta["effective"]["bodies"][0]
     assert body["linear_drag"] == body["angular_drag"] == "joint damping"
     assert body["dof_damping"] == [0.8] * 3 + [0.02] * 3
@@ -388,15 +395,15 @@ def test_drag_on_centred_body_is_exact_joint_damping():
     assert coarse < 1e-10
 
 
-def test_drag_on_offset_body_is_per_step_and_first_order():
+def test_drag_on_offset_body_is_per_step_and_first_order(errors):
     # Centre of mass off the origin: the free joint's translational dofs carry the origin's
     # velocity, so linear drag goes through xfrc_applied, computed at the start of each step and
     # held over it (also across RK4's stages): first order in the drag term, error ~ c/m h T
     # |v| / 2 ~ 1e-4; halving h halves it. With align_free the same scene is joint damping again
     # and fourth order.
     scene = scene3d(effects=DRAG)
-    traj, coarse = _errors(scene, "rk4", 1e-3)
-    _, fine = _errors(scene, "rk4", 5e-4)
+    traj, coarse = errors(scene, "rk4", 1e-3)
+    _, fine = errors(scene, "rk4", 5e-4)
     body = traj.meta["effective"]["bodies"][0]
     assert body["linear_drag"] == "per-step xfrc_applied"
     assert body["angular_drag"] == "joint damping"
@@ -404,23 +411,23 @@ def test_drag_on_offset_body_is_per_step_and_first_order():
     assert coarse < 1e-3
     assert math.log2(coarse / fine) == pytest.approx(1.0, abs=0.2)
     aligned = scene3d(effects=DRAG, options="[engine_options.mujoco]\nalign_free = true")
-    traj, coarse = _errors(aligned, "rk4", 1e-3)
+    traj, coarse = errors(aligned, "rk4", 1e-3)
     assert traj.meta["effective"]["bodies"][0]["linear_drag"] == "joint damping"
     assert coarse < 1e-8
 
 
-def test_drag_per_step_option_matches_reference_at_first_order():
+def test_drag_per_step_option_matches_reference_at_first_order(errors):
     # drag = "per_step" forces the per-step route even where joint damping is exact; its
     # Euler-level error shrinks at first order toward the same reference.
     scene = scene3d(com=[0, 0, 0], effects=DRAG,
                     options='[engine_options.mujoco]\ndrag = "per_step"')
-    traj, coarse = _errors(scene, "euler", 1e-3)
-    _, fine = _errors(scene, "euler", 5e-4)
+    traj, coarse = errors(scene, "euler", 1e-3)
+    _, fine = errors(scene, "euler", 5e-4)
     assert traj.meta["effective"]["bodies"][0]["linear_drag"] == "per-step xfrc_applied"
     assert math.log2(coarse / fine) == pytest.approx(1.0, abs=0.2)
 
 
-def test_loads_act_at_the_centre_of_mass_in_world_frame():
+def test_loads_act_at_the_centre_of_mass_in_world_frame(errors):
     # A force through the centre of mass of an offset body induces no rotation (a force at the
     # origin would spin it at |com x F| / I ~ 10 rad/s after 1 s); a world torque on a body with
     # isotropic inertia gives w = tau t / I exactly, whatever the orientation (a body-frame
@@ -436,7 +443,7 @@ torque = [0.02, 0.0, -0.01]
         traj = ENGINE.run(scene, integrator, 1e-3)
         np.testing.assert_allclose(traj.omega[:, 0], traj.t[:, None] * [2.0, 0.0, -1.0],
                                    rtol=0, atol=1e-12)
-    traj, err = _errors(scene, "rk4", 1e-3)
+    traj, err = errors(scene, "rk4", 1e-3)
     assert err < 1e-9  # constant loads are exact for RK4 up to the rotation coupling
     assert traj.meta["effective"]["stepping"].startswith("mj_step")
 
@@ -478,7 +485,7 @@ def test_planar_hinge_at_centre_of_mass_conserves_momentum():
     assert traj.meta["effective"]["bodies"][0]["joint"].startswith("planar")
 
 
-def test_planar_spring_drag_and_load_track_reference():
+def test_planar_spring_drag_and_load_track_reference(errors):
     effects = """
 gravity = [0.0, -9.81]
 [[effects.springs]]
@@ -497,8 +504,8 @@ force = [0.5, 0.0]
 torque = 0.05
 """
     scene = scene2d(effects)
-    traj, coarse = _errors(scene, "rk4", 1e-3)
-    _, fine = _errors(scene, "rk4", 5e-4)
+    traj, coarse = errors(scene, "rk4", 1e-3)
+    _, fine = errors(scene, "rk4", 5e-4)
     assert traj.meta["effective"]["bodies"][0]["linear_drag"] == "joint damping"
     assert coarse < 1e-7 and math.log2(coarse / fine) > 3.5
 
