@@ -7,6 +7,7 @@ unknown keys (typos) are refused the same way everywhere.
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from collections.abc import Callable, Iterable
@@ -60,7 +61,12 @@ class Fields:
         if key in self.table:
             return self.table[key]
         if default is _MISSING:
-            raise CaseError(self.file, self.field(key), "this required field (it is missing)")
+            # a typo of a required key is reported here, before done() could call it unknown
+            near = difflib.get_close_matches(key, [k for k in self.table if isinstance(k, str)],
+                                             n=1, cutoff=0.75)
+            hint = f"; is {near[0]!r} a typo of it?" if near else ""
+            raise CaseError(self.file, self.field(key),
+                            f"this required field (it is missing{hint})")
         return default
 
     def done(self, allowed_extra: Iterable[str] = ()) -> None:
