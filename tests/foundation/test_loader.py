@@ -576,6 +576,16 @@ def test_typo_error_lists_optional_keys_that_were_absent():
     assert "'solution'" in exc.expected and "'table'" in exc.expected
 
 
+def test_a_mistyped_required_key_is_named_in_the_missing_field_error():
+    case = base3d()
+    case["run"]["dtt"] = case["run"].pop("dt")
+    exc = refused(case, "run.dt", "required field")
+    assert "'dtt' a typo" in str(exc)
+    case = base3d()
+    case["bodies"][2]["postion"] = case["bodies"][2].pop("position")
+    assert "'postion' a typo" in str(refused(case, "bodies[2].position", "required"))
+
+
 def _mesh_body(file, **extra):
     return setting("bodies[4].shape", {"mesh": {"file": file, **extra}})
 
