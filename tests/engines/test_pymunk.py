@@ -370,3 +370,19 @@ stiffness = 2e8
     assert traj.failure is not None and traj.failure["reason"] == "non-finite state"
     assert 0 < traj.failure["time"] < 0.5
     assert np.all(np.isfinite(traj.com)) and len(traj.t) < 500
+
+
+def test_fast_state_read_equals_the_public_api():
+    # The adapter reads samples through Chipmunk's C getters (the calls pymunk's properties
+    # make) to keep recording cheap; the row must be bit-identical to the public properties'.
+    from crosscheck.engines.pymunk import PymunkModel
+
+    bodies, effects, _, _ = _hanging_chain()
+    scene = _scene(0.1, 1e-3, bodies.replace("angular_velocity = 0.0", "angular_velocity = 2.0"),
+                   effects=effects)
+    model = PymunkModel(scene, 1e-3)
+    assert model._fast is not None  # the fast path is the one in use with this pymunk
+    model.advance(57)
+    fast, public = model.read_raw(), model.read_raw_public()
+    assert fast == public and len(fast) == 12
+    assert fast[2] != _hanging_chain()[3][0]  # it turned: the rows are not the initial state

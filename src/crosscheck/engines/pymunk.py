@@ -49,6 +49,11 @@ try:  # a missing or broken pymunk makes this engine "not applicable", not an im
 except Exception:  # pragma: no cover
     _pm = None
 
+try:  # Chipmunk's C getters, as pymunk's own properties call them (see PymunkModel.read_raw)
+    from pymunk._chipmunk_cffi import lib as _cp
+except Exception:  # pragma: no cover
+    _cp = None
+
 INTEGRATORS: tuple[str, ...] = ("position_first",)
 
 INTEGRATOR_NOTES = {
@@ -137,9 +142,33 @@ class PymunkModel:
         self.per_step = [(self.bodies[i], float(lin[i]), float(ang[i]), float(force[i, 0]),
                           float(force[i, 1]), float(torque[i])) for i in range(n)
                          if lin[i] or ang[i] or force[i].any() or torque[i]]
+        self._fast = None
+        if _cp is not None and all(hasattr(b, "_body") for b in self.bodies):
+            self._fast = (_cp.cpBodyLocalToWorld, _cp.cpBodyGetVelocity, _cp.cpBodyGetAngle,
+                          _cp.cpBodyGetAngularVelocity)
+            self._handles = [(b._body, (float(body.com[0]), float(body.com[1])))
+                             for b, body in zip(self.bodies, scene.bodies, strict=True)]
 
     def read_raw(self) -> list[float]:
-        """One flat row: per body COM x, y, angle, COM velocity x, y, angular velocity."""
+        """One flat row: per body COM x, y, angle, COM velocity x, y, angular velocity.
+
+        Through Chipmunk's C getters when pymunk exposes them (``cpBodyLocalToWorld`` of the
+        centre of gravity, ``cpBodyGetVelocity``, ...): the same calls pymunk's properties make,
+        without building a Vec2d per value (measured 2.3 us instead of 6.8 us per body, against
+        ~2 us per ``Space.step``: the difference between ~10 % and ~35 % recording overhead at
+        ten steps per sample). ``read_raw_public`` is the same row through the public API.
+        """
+        if self._fast is None:
+            return self.read_raw_public()
+        to_world, vel, ang, spin = self._fast
+        row: list[float] = []
+        for handle, cog in self._handles:
+            c = to_world(handle, cog)
+            v = vel(handle)
+            row += (c.x, c.y, ang(handle), v.x, v.y, spin(handle))
+        return row
+
+    def read_raw_public(self) -> list[float]:
         row: list[float] = []
         for b in self.bodies:
             c = b.local_to_world(b.center_of_gravity)
