@@ -7,6 +7,7 @@ The format is documented key by key in docs/cases.md.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import tomllib
 from pathlib import Path
@@ -327,8 +328,12 @@ def _body(f: Fields, dimension: int, materials: dict[str, Material], base_dir: P
     shape = _shape(f, dimension, base_dir)
 
     if f.has("mass") == f.has("density"):
-        raise CaseError(f.file, f.field("mass"), "exactly one of mass (kg) or density",
-                        "both" if f.has("mass") else "neither")
+        got = "both" if f.has("mass") else "neither"
+        near = difflib.get_close_matches("mass", list(f.table), n=1, cutoff=0.75) \
+            + difflib.get_close_matches("density", list(f.table), n=1, cutoff=0.75)
+        if got == "neither" and near:  # 'masss = 10' is a typo, not a missing mass
+            got = f"neither (is {near[0]!r} a typo?)"
+        raise CaseError(f.file, f.field("mass"), "exactly one of mass (kg) or density", got)
     if f.has("mass"):
         mass = f.number("mass", positive=True, unit="kg")
         props = _checked_mass_properties(f, shape, 1.0, mass)
