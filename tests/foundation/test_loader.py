@@ -584,6 +584,9 @@ def test_a_mistyped_required_key_is_named_in_the_missing_field_error():
     case = base3d()
     case["bodies"][2]["postion"] = case["bodies"][2].pop("position")
     assert "'postion' a typo" in str(refused(case, "bodies[2].position", "required"))
+    case = base3d()
+    case["bodies"][2]["masss"] = case["bodies"][2].pop("mass")
+    assert "'masss' a typo" in str(refused(case, "bodies[2].mass", "exactly one of mass"))
 
 
 def _mesh_body(file, **extra):
