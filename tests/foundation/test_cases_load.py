@@ -159,3 +159,30 @@ def test_two_body_spring_is_isolated_and_2d_box_is_2d(capsys):
     box = load_case(REPO / "cases/rigid2d/falling_box.toml")
     assert box.dimension == 2 and box.bodies[0].angular_velocity[0] != 0
     assert math.isclose(box.effects.gravity[1], -9.81)
+
+
+def _toml_blocks(markdown: str) -> list[str]:
+    parts = markdown.split("```toml\n")[1:]
+    return [p.split("```", 1)[0] for p in parts]
+
+
+def test_the_annotated_example_in_docs_is_the_tennis_racket_case():
+    from crosscheck.scene.loader import load_case_text
+
+    blocks = _toml_blocks((REPO / "docs" / "cases.md").read_text())
+    doc = load_case_text(blocks[0], name="docs/cases.md")
+    real = load_case(REPO / "cases/rigid3d/tennis_racket.toml")
+    for field in ("name", "description", "tags", "dimension", "run", "reference", "tolerances",
+                  "engine_options", "ground", "materials"):
+        assert getattr(doc, field) == getattr(real, field), field
+    assert doc.effects.names() == real.effects.names() == ()
+    (a,), (b,) = doc.bodies, real.bodies
+    assert (a.name, a.mass, a.shape.kind) == (b.name, b.mass, b.shape.kind)
+    for field in ("com", "inertia", "position", "orientation", "velocity", "angular_velocity"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    # the tolerance example of the docs is valid inside a case, with the documented precedence
+    tol = load_case_text(blocks[0].split("[tolerances]")[0] + blocks[1]).tolerances
+    assert tol["position_error_max"].limit("pybullet", "maximal") == 1e-3
+    e = tol["energy_drift"]
+    assert (e.limit("mujoco", "euler"), e.limit("mujoco", "rk4"), e.limit("mujoco", "implicit"),
+            e.limit("pybullet", "maximal")) == (2e-2, 1e-8, 1e-2, 5e-2)
