@@ -697,6 +697,10 @@ class PybulletModel:
                         1.0 + np.max(np.abs(b.com3))):
                     problems.append(f"body {body.name!r}: inertial frame position read back "
                                     f"{list(info[3])}, asked {b.com3.tolist()}")
+                q_read, q_set = np.array(info[4]), np.array(_xyzw(b.q_axes))
+                if min(np.max(np.abs(q_read - q_set)), np.max(np.abs(q_read + q_set))) > 1e-15:
+                    problems.append(f"body {body.name!r}: inertial frame orientation read back "
+                                    f"{list(info[4])}, asked {list(q_set)}")
             bodies.append(entry)
         return {
             "coordinates": self.integrator,
