@@ -1,7 +1,8 @@
 """PyBullet adapter: one DIRECT client per run, every body built from the Scene.
 
-Model (see docs/engines.md, section PyBullet, for the measurements behind each choice)
-------------------------------------------------------------------------------------------
+Model (docs/engines_pybullet_pymunk.md, section PyBullet, has the measurements behind each
+choice; it moves into docs/engines.md once that page exists)
+---------------------------------------------------------------------------------------------
 * A 3D body is the base of its own ``createMultiBody``: the link frame is the declared body frame
   (``basePosition`` / ``baseOrientation``), the inertial frame sits at ``Body.com`` with the
   orientation of the principal axes ``V`` (``I_body = V diag(moments) V^T``, ``det V = +1``), and
@@ -28,6 +29,8 @@ the multibody velocity clamp (``maxJointVelocity``, trap 5), sleeping, gravity, 
 the process-global contact breaking threshold (trap 10). PyBullet's ``getDynamicsInfo`` does not
 return damping, activation state or the clamp, so the adapter measures them: one force-free probe
 step at 150 m/s and 150 rad/s must leave every velocity unchanged, else the run is a failure.
+A second step at rest follows: a maximal-coordinate body caches its world inverse inertia
+from its last step, and neither changeDynamics nor a pose reset refreshes it.
 
 2D scenes run in 3D in the x-y plane (y up):
 

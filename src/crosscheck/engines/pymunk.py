@@ -1,7 +1,7 @@
 """Pymunk (Chipmunk2D) adapter: 2D scenes only, state in crosscheck's convention.
 
-Model (see docs/engines.md, section Pymunk)
--------------------------------------------
+Model (docs/engines_pybullet_pymunk.md, section Pymunk)
+-------------------------------------------------------
 * One ``pymunk.Body(mass, moment)`` per scene body, no shapes (nothing collides; a shape with a
   mass or density would also recompute the body's mass, moment and centre of gravity). Set in this
   order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
