@@ -36,3 +36,14 @@ def run_case(name: str, integrator: str, duration: float | None = None):
 @pytest.fixture(scope="session")
 def runs():
     return run_case
+
+
+@pytest.fixture(scope="session")
+def fluid_case():
+    """``fluid_case(name, duration=None)``: a case of cases/fluid, optionally shortened."""
+
+    def load(name: str, duration: float | None = None):
+        scene = case(name)
+        return scene if duration is None else shortened(scene, duration)
+
+    return load

@@ -367,8 +367,9 @@ def redistance_sweep(phi, dx, band_cells, iterations):
                 f = True
             elif j < ny - 1 and (p < 0.0) != (phi[i, j + 1] < 0.0):
                 f = True
-            # cells far outside the band are marked frozen at the cap: no sweep work there
-            frozen[i, j] = f or abs(p) > cap + 2.0 * dx
+            # cells far outside the band are frozen at the cap: no sweep work there. "Far" assumes
+            # |grad phi| <= 2, which holds for a level set that was a distance one step ago
+            frozen[i, j] = f or abs(p) > 2.0 * (cap + 2.0 * dx)
             if f:
                 d[i, j] = min(abs(p), cap)
                 i0 = min(i0, i)
