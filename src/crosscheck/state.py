@@ -1,7 +1,7 @@
 """Trajectory: the normalised state every engine returns, and its .npz file format.
 
 Per body and sample: centre of mass (world), orientation of the declared body frame (unit
-quaternion w, x, y, z, sign-continuous; 2D: unwrapped angle), centre-of-mass velocity (world) and
+quaternion w, x, y, z, sign-continuous; 2D: continuous angle, never wrapped), centre-of-mass velocity (world) and
 angular velocity (world; 2D: scalar). ``meta`` holds what is needed to interpret the arrays with
 NumPy alone (masses, body-frame inertia about the centre of mass, engine settings read back,
 stepping wall time). A run that blew up is truncated at the last finite sample and carries
@@ -138,5 +138,8 @@ class TrajectoryRecorder:
         if self.dimension == 3:
             traj.quat = sign_continuous(self.rot[:n])
         else:
-            traj.angle = np.unwrap(self.rot[:n], axis=0) if n else self.rot[:0].copy()
+            # Adapters record the engine's accumulated (continuous) angle. No np.unwrap here: it
+            # assumes less than half a turn between samples and would fold a fast spin sampled
+            # coarsely (50 rad/s every 0.1 s) back by 2 pi.
+            traj.angle = self.rot[:n].copy()
         return traj

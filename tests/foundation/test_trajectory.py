@@ -3,7 +3,7 @@
 The file is the contract with anyone outside crosscheck: it must hold exactly the arrays of
 DESIGN.md "Trajectory files" with their shapes, be readable with NumPy alone (no pickles) and
 round-trip losslessly. The recorder turns a blow-up into data (failure time, truncated arrays),
-makes quaternions sign-continuous and unwraps 2D angles.
+makes quaternions sign-continuous and keeps 2D angles as the engine accumulated them.
 """
 
 from __future__ import annotations
@@ -197,16 +197,16 @@ def test_recorded_quaternions_are_made_sign_continuous():
     np.testing.assert_allclose(q, true * signs[0], atol=1e-15)
 
 
-def test_recorded_2d_angles_are_unwrapped():
-    # an engine reporting angles wrapped into (-pi, pi] while spinning at 7 rad/s
-    n_samples = 80
-    t = np.linspace(0.0, 4.0, n_samples)  # 7 * 0.05 = 0.35 rad between samples
-    true = np.stack([0.3 + 7.0 * t, -1.0 - 2.5 * t], axis=1)
-    wrapped = np.angle(np.exp(1j * true))
-    assert np.max(np.abs(wrapped)) <= math.pi and np.ptp(true[:, 0]) > 8 * math.pi
+def test_recorded_2d_angles_are_kept_continuous():
+    # A body spinning at 50 rad/s sampled every 0.1 s turns 5 rad between samples; the recorder
+    # must keep the engine's accumulated angle, where np.unwrap would fold 5 rad back to -1.28.
+    n_samples = 40
+    t = np.arange(n_samples) * 0.1
+    true = np.stack([0.3 + 50.0 * t, -1.0 - 2.5 * t], axis=1)
     rec = TrajectoryRecorder(n_samples, 2, 2)
     for k in range(n_samples):
-        rec.record(t[k], np.zeros((2, 2)), wrapped[k], np.zeros((2, 2)), np.array([7.0, -2.5]))
+        rec.record(t[k], np.zeros((2, 2)), true[k], np.zeros((2, 2)), np.array([50.0, -2.5]))
     traj = rec.finish({})
-    np.testing.assert_allclose(traj.angle, true, atol=1e-12)
+    np.testing.assert_array_equal(traj.angle, true)
+    assert np.ptp(traj.angle[:, 0]) > 190.0
     assert traj.omega.shape == (n_samples, 2) and traj.quat is None
