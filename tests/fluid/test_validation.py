@@ -100,9 +100,9 @@ def test_dam_break_over_an_obstacle(runs):
     m = fluid_metrics(scene, rec)
     assert m["volume_change"] < 0.02
     # the block stays dry: no face inside or on it carries flow, and the water went over it
-    from crosscheck.sim.fluid.solver import FluidState
+    from crosscheck.sim.fluid.solver import INTEGRATORS, FluidState
 
-    st = FluidState(scene.fluid, np.array([0.0, -9.81]), None)
+    st = FluidState(scene.fluid, np.array([0.0, -9.81]), INTEGRATORS["semi_lagrangian"])
     solid = st.solid
     assert solid.sum() == 100                        # 10 x 10 cells of 2.38 mm
     u = rec.fields["u"][-1]
