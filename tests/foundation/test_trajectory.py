@@ -9,7 +9,6 @@ makes quaternions sign-continuous and keeps 2D angles as the engine accumulated 
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
