@@ -27,6 +27,10 @@ principal axis by exp(n (h |w|)^2 / 2)); it is first order.
 Scenes without springs have a block-diagonal system solved body by body inside one compiled
 loop; scenes with springs assemble the sparse matrix in a compiled kernel and solve it with
 SciPy once per step (a Python loop over *steps*, never over bodies).
+
+The compiled pieces live in kernels3d.py and kernels2d.py (each kernel file is self-contained,
+so numba's per-file cache can never pair a kernel with a stale copy of a helper from another
+file); this module holds the drivers.
 """
 
 from __future__ import annotations
@@ -36,413 +40,11 @@ import warnings
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
-from numba import njit
 
 from crosscheck.sim.rigid import kernels2d as k2
 from crosscheck.sim.rigid import kernels3d as k3
-from crosscheck.sim.rigid.kernels3d import JIT
 
 DENSE_LIMIT = 96  # unknowns up to which a dense LAPACK solve beats SciPy's sparse overhead
-
-
-# -- 3D -------------------------------------------------------------------------------------------
-@njit(**JIT)
-def _skew(r0, r1, r2, out, o_r, o_c):
-    """out[o_r:o_r+3, o_c:o_c+3] = [r]x (the cross-product matrix)."""
-    out[o_r + 0, o_c + 0] = 0.0
-    out[o_r + 0, o_c + 1] = -r2
-    out[o_r + 0, o_c + 2] = r1
-    out[o_r + 1, o_c + 0] = r2
-    out[o_r + 1, o_c + 1] = 0.0
-    out[o_r + 1, o_c + 2] = -r0
-    out[o_r + 2, o_c + 0] = -r1
-    out[o_r + 2, o_c + 1] = r0
-    out[o_r + 2, o_c + 2] = 0.0
-
-
-@njit(**JIT)
-def _world_inertia(bodies, R, i, Iw):
-    """Iw[i] = R I_body R^T."""
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for a in range(3):
-                for b in range(3):
-                    acc += R[i, r, a] * bodies.inertia[i, a, b] * R[i, c, b]
-            Iw[i, r, c] = acc
-
-
-@njit(**JIT)
-def spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds):
-    """K = dW/dX and D = dW/du (12 x 12) of spring s's wrench W = (f, oa x f, -f, -ob x f) on the
-    local unknowns (x_a, phi_a, x_b, phi_b) and (v_a, w_a, v_b, w_b)."""
-    a = springs.a[s]
-    b = springs.b[s]
-    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = k3.spring_point(x, R, v, w, a, springs.ra[s])
-    if b >= 0:
-        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = k3.spring_point(x, R, v, w, b,
-                                                                       springs.rb[s])
-    else:
-        obx = oby = obz = 0.0
-        pbx, pby, pbz = springs.rb[s, 0], springs.rb[s, 1], springs.rb[s, 2]
-        vbx = vby = vbz = 0.0
-    d = np.array([pax - pbx, pay - pby, paz - pbz])
-    dv = np.array([vax - vbx, vay - vby, vaz - vbz])
-    k = springs.stiffness[s]
-    c = springs.damping[s]
-    l0 = springs.rest_length[s]
-    length = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
-    Kd = np.zeros((3, 3))
-    Dd = np.zeros((3, 3))
-    f = np.zeros(3)
-    if length > 0.0:
-        e = d / length
-        rate = e[0] * dv[0] + e[1] * dv[1] + e[2] * dv[2]
-        mag = -(k * (length - l0) + c * rate)
-        pdv = dv - rate * e  # (1 - e e^T) dv
-        for r in range(3):
-            f[r] = mag * e[r]
-            for col in range(3):
-                proj = (1.0 if r == col else 0.0) - e[r] * e[col]
-                Kd[r, col] = (-k * ((1.0 if r == col else 0.0) - l0 / length * proj)
-                              - c * (e[r] * pdv[col] + rate * proj) / length)
-                Dd[r, col] = -c * e[r] * e[col]
-    else:
-        for r in range(3):
-            Kd[r, r] = -k
-    # J = [1, -[oa]x, -1, [ob]x] maps local (x, phi) or (v, w) increments to d(d) or d(dv)
-    J = np.zeros((3, 12))
-    for r in range(3):
-        J[r, r] = 1.0
-        J[r, 6 + r] = -1.0
-    _skew(-oax, -oay, -oaz, J, 0, 3)
-    _skew(obx, oby, obz, J, 0, 9)
-    # H: d(dv) from rotating the arms, -[wa]x[oa]x dphi_a + [wb]x[ob]x dphi_b
-    H = np.zeros((3, 12))
-    Sa = np.zeros((3, 3))
-    Sb = np.zeros((3, 3))
-    Wa = np.zeros((3, 3))
-    Wb = np.zeros((3, 3))
-    _skew(oax, oay, oaz, Sa, 0, 0)
-    _skew(obx, oby, obz, Sb, 0, 0)
-    _skew(w[a, 0], w[a, 1], w[a, 2], Wa, 0, 0)
-    if b >= 0:
-        _skew(w[b, 0], w[b, 1], w[b, 2], Wb, 0, 0)
-    H[:, 3:6] = -(Wa @ Sa)
-    H[:, 9:12] = Wb @ Sb
-    Kf = Kd @ J + Dd @ H
-    Ks[:, :] = J.T @ Kf
-    Ds[:, :] = J.T @ (Dd @ J)
-    # geometric terms of the torques: d(oa x f) from turning oa, d(-ob x f) from turning ob
-    Fx = np.zeros((3, 3))
-    _skew(f[0], f[1], f[2], Fx, 0, 0)
-    Ks[3:6, 3:6] += Fx @ Sa
-    Ks[9:12, 9:12] -= Fx @ Sb
-
-
-@njit(**JIT)
-def assemble_3d(bodies, gravity, springs, drag, loads, x, q, P, L, h,
-                R, v, w, F, T, Iw, rows, cols, vals, rhs):
-    """A = M - h D - h^2 K as COO triplets and rhs = h (f0 + h K u0); returns the entry count."""
-    n = x.shape[0]
-    k3.evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
-    nnz = 0
-    for i in range(n):
-        _world_inertia(bodies, R, i, Iw)
-        cl = 0.0
-        ca = 0.0
-        if drag is not None:
-            cl = drag.linear[i]
-            ca = drag.angular[i]
-        for c in range(3):
-            rows[nnz] = 6 * i + c
-            cols[nnz] = 6 * i + c
-            vals[nnz] = bodies.mass[i] + h * cl
-            nnz += 1
-            rhs[6 * i + c] = h * F[i, c]
-            rhs[6 * i + 3 + c] = h * T[i, c]
-            for c2 in range(3):
-                rows[nnz] = 6 * i + 3 + c
-                cols[nnz] = 6 * i + 3 + c2
-                vals[nnz] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
-                nnz += 1
-    if springs is not None:
-        Ks = np.empty((12, 12))
-        Ds = np.empty((12, 12))
-        u0 = np.zeros(12)
-        dof = np.empty(12, dtype=np.int64)
-        for s in range(springs.a.shape[0]):
-            spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds)
-            a = springs.a[s]
-            b = springs.b[s]
-            m = 12 if b >= 0 else 6
-            for c in range(3):
-                dof[c] = 6 * a + c
-                dof[3 + c] = 6 * a + 3 + c
-                u0[c] = v[a, c]
-                u0[3 + c] = w[a, c]
-                if b >= 0:
-                    dof[6 + c] = 6 * b + c
-                    dof[9 + c] = 6 * b + 3 + c
-                    u0[6 + c] = v[b, c]
-                    u0[9 + c] = w[b, c]
-            for r in range(m):
-                ku = 0.0
-                for col in range(m):
-                    ku += Ks[r, col] * u0[col]
-                    rows[nnz] = dof[r]
-                    cols[nnz] = dof[col]
-                    vals[nnz] = -h * Ds[r, col] - h * h * Ks[r, col]
-                    nnz += 1
-                rhs[dof[r]] += h * h * ku
-    return nnz
-
-
-@njit(**JIT)
-def backward_rotation(bodies, q, L, i, h):
-    """q[i] <- exp(phi) q[i] with phi = h w(exp(phi) q[i], L[i]): backward Euler for the
-    orientation (the angular velocity of the *end* of the step). Newton on
-    G(phi) = phi - h w(phi), with dw = (-[w]x + I_w^-1 [L]x) dpsi for a small world rotation dpsi
-    of the body and dpsi = dexp(phi) dphi, dexp(phi) = 1 + [phi]x / 2 + [phi]x^2 / 6. Converges
-    quadratically from phi = h w(q_n, L); the iteration count is bounded for safety."""
-    ibinv = bodies.inv_inertia[i]
-    R = np.empty((1, 3, 3))
-    qt = np.empty((1, 4))
-    q0 = np.empty((1, 4))
-    for c in range(4):
-        q0[0, c] = q[i, c]
-    lw = np.array([L[i, 0], L[i, 1], L[i, 2]])
-    phi = np.zeros(3)
-    Lx = np.zeros((3, 3))
-    _skew(lw[0], lw[1], lw[2], Lx, 0, 0)
-    for _ in range(30):
-        rotate_left_row(q0, phi, qt)
-        k3.rotation_from_quat(qt, 0, R)
-        Rm = R[0]
-        iw_inv = Rm @ ibinv @ Rm.T
-        w = iw_inv @ lw
-        G = phi - h * w
-        Wx = np.zeros((3, 3))
-        Px = np.zeros((3, 3))
-        _skew(w[0], w[1], w[2], Wx, 0, 0)
-        _skew(phi[0], phi[1], phi[2], Px, 0, 0)
-        dexp = np.eye(3) + 0.5 * Px + (Px @ Px) / 6.0
-        J = np.eye(3) - h * ((iw_inv @ Lx - Wx) @ dexp)
-        step = np.linalg.solve(J, G)
-        phi = phi - step
-        size = np.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
-        if not size > 1e-15 * (1e-300 + np.sqrt(phi[0] ** 2 + phi[1] ** 2 + phi[2] ** 2)):
-            break
-    rotate_left_row(q0, phi, qt)
-    for c in range(4):
-        q[i, c] = qt[0, c]
-
-
-@njit(**JIT)
-def rotate_left_row(q0, phi, out):
-    k3.rotate_left(q0, 0, phi[0], phi[1], phi[2], out)
-
-
-@njit(**JIT)
-def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
-    """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L."""
-    for i in range(x.shape[0]):
-        for c in range(3):
-            P[i, c] += bodies.mass[i] * du[6 * i + c]
-            L[i, c] += (Iw[i, c, 0] * du[6 * i + 3] + Iw[i, c, 1] * du[6 * i + 4]
-                        + Iw[i, c, 2] * du[6 * i + 5])
-            x[i, c] += h * P[i, c] * bodies.inv_mass[i]
-        backward_rotation(bodies, q, L, i, h)
-    k3.normalize_quats(q)
-
-
-@njit(**JIT)
-def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
-    """Backward Euler without springs: the system is block-diagonal, solved body by body."""
-    n = x.shape[0]
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
-    Iw = np.empty((n, 3, 3))
-    du = np.empty(6 * n)
-    A = np.empty((3, 3))
-    for _ in range(n_steps):
-        k3.evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
-        for i in range(n):
-            _world_inertia(bodies, R, i, Iw)
-            cl = 0.0
-            ca = 0.0
-            if drag is not None:
-                cl = drag.linear[i]
-                ca = drag.angular[i]
-            for c in range(3):
-                du[6 * i + c] = h * F[i, c] / (bodies.mass[i] + h * cl)
-                for c2 in range(3):
-                    A[c, c2] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
-            # 3 x 3 solve by the adjugate (A is symmetric positive definite)
-            c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
-            c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
-            c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
-            det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
-            b0, b1, b2 = h * T[i, 0], h * T[i, 1], h * T[i, 2]
-            du[6 * i + 3] = (c00 * b0 + (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) * b1
-                             + (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) * b2) / det
-            du[6 * i + 4] = (c01 * b0 + (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) * b1
-                             + (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) * b2) / det
-            du[6 * i + 5] = (c02 * b0 + (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) * b1
-                             + (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * b2) / det
-        finish_3d(bodies, x, q, P, L, w, Iw, du, h)
-
-
-# -- 2D -------------------------------------------------------------------------------------------
-@njit(**JIT)
-def spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds):
-    """K, D (6 x 6) of spring s's wrench (f, oa x f, -f, -ob x f) on (x_a, th_a, x_b, th_b)."""
-    a = springs.a[s]
-    b = springs.b[s]
-    oax, oay, pax, pay, vax, vay = k2.spring_point(x, angle, v, w, a, springs.ra[s])
-    if b >= 0:
-        obx, oby, pbx, pby, vbx, vby = k2.spring_point(x, angle, v, w, b, springs.rb[s])
-    else:
-        obx = oby = 0.0
-        pbx, pby = springs.rb[s, 0], springs.rb[s, 1]
-        vbx = vby = 0.0
-    d = np.array([pax - pbx, pay - pby])
-    dv = np.array([vax - vbx, vay - vby])
-    k = springs.stiffness[s]
-    c = springs.damping[s]
-    l0 = springs.rest_length[s]
-    length = np.sqrt(d[0] ** 2 + d[1] ** 2)
-    Kd = np.zeros((2, 2))
-    Dd = np.zeros((2, 2))
-    f = np.zeros(2)
-    if length > 0.0:
-        e = d / length
-        rate = e[0] * dv[0] + e[1] * dv[1]
-        mag = -(k * (length - l0) + c * rate)
-        pdv = dv - rate * e
-        for r in range(2):
-            f[r] = mag * e[r]
-            for col in range(2):
-                proj = (1.0 if r == col else 0.0) - e[r] * e[col]
-                Kd[r, col] = (-k * ((1.0 if r == col else 0.0) - l0 / length * proj)
-                              - c * (e[r] * pdv[col] + rate * proj) / length)
-                Dd[r, col] = -c * e[r] * e[col]
-    else:
-        Kd[0, 0] = -k
-        Kd[1, 1] = -k
-    # d(point) = dx + dth perp(o), perp(o) = (-o_y, o_x)
-    J = np.zeros((2, 6))
-    J[0, 0] = 1.0
-    J[1, 1] = 1.0
-    J[0, 2] = -oay
-    J[1, 2] = oax
-    J[0, 3] = -1.0
-    J[1, 4] = -1.0
-    J[0, 5] = oby
-    J[1, 5] = -obx
-    # turning the arm changes the point velocity w perp(o): d/dth = -w o
-    H = np.zeros((2, 6))
-    H[0, 2] = -w[a] * oax
-    H[1, 2] = -w[a] * oay
-    if b >= 0:
-        H[0, 5] = w[b] * obx
-        H[1, 5] = w[b] * oby
-    Ks[:, :] = J.T @ (Kd @ J + Dd @ H)
-    Ds[:, :] = J.T @ (Dd @ J)
-    # d(oa x f)/dth_a from turning oa: -(oa . f); d(-ob x f)/dth_b: +(ob . f)
-    Ks[2, 2] -= oax * f[0] + oay * f[1]
-    Ks[5, 5] += obx * f[0] + oby * f[1]
-
-
-@njit(**JIT)
-def assemble_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, h,
-                v, w, F, T, rows, cols, vals, rhs):
-    n = x.shape[0]
-    k2.evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
-    nnz = 0
-    for i in range(n):
-        cl = 0.0
-        ca = 0.0
-        if drag is not None:
-            cl = drag.linear[i]
-            ca = drag.angular[i]
-        for c in range(2):
-            rows[nnz] = 3 * i + c
-            cols[nnz] = 3 * i + c
-            vals[nnz] = bodies.mass[i] + h * cl
-            nnz += 1
-            rhs[3 * i + c] = h * F[i, c]
-        rows[nnz] = 3 * i + 2
-        cols[nnz] = 3 * i + 2
-        vals[nnz] = bodies.moment[i] + h * ca
-        nnz += 1
-        rhs[3 * i + 2] = h * T[i]
-    if springs is not None:
-        Ks = np.empty((6, 6))
-        Ds = np.empty((6, 6))
-        u0 = np.zeros(6)
-        dof = np.empty(6, dtype=np.int64)
-        for s in range(springs.a.shape[0]):
-            spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds)
-            a = springs.a[s]
-            b = springs.b[s]
-            m = 6 if b >= 0 else 3
-            for c in range(2):
-                dof[c] = 3 * a + c
-                u0[c] = v[a, c]
-                if b >= 0:
-                    dof[3 + c] = 3 * b + c
-                    u0[3 + c] = v[b, c]
-            dof[2] = 3 * a + 2
-            u0[2] = w[a]
-            if b >= 0:
-                dof[5] = 3 * b + 2
-                u0[5] = w[b]
-            for r in range(m):
-                ku = 0.0
-                for col in range(m):
-                    ku += Ks[r, col] * u0[col]
-                    rows[nnz] = dof[r]
-                    cols[nnz] = dof[col]
-                    vals[nnz] = -h * Ds[r, col] - h * h * Ks[r, col]
-                    nnz += 1
-                rhs[dof[r]] += h * h * ku
-    return nnz
-
-
-@njit(**JIT)
-def finish_2d(bodies, x, angle, P, L, w, du, h):
-    for i in range(x.shape[0]):
-        for c in range(2):
-            P[i, c] += bodies.mass[i] * du[3 * i + c]
-            x[i, c] += h * P[i, c] * bodies.inv_mass[i]
-        L[i] += bodies.moment[i] * du[3 * i + 2]
-        angle[i] += h * (w[i] + du[3 * i + 2])
-
-
-@njit(**JIT)
-def advance_local_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
-    n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
-    du = np.empty(3 * n)
-    for _ in range(n_steps):
-        k2.evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
-        for i in range(n):
-            cl = 0.0
-            ca = 0.0
-            if drag is not None:
-                cl = drag.linear[i]
-                ca = drag.angular[i]
-            du[3 * i] = h * F[i, 0] / (bodies.mass[i] + h * cl)
-            du[3 * i + 1] = h * F[i, 1] / (bodies.mass[i] + h * cl)
-            du[3 * i + 2] = h * T[i] / (bodies.moment[i] + h * ca)
-        finish_2d(bodies, x, angle, P, L, w, du, h)
 
 
 # -- Python drivers (the registry's entry points) --------------------------------------------------
@@ -466,7 +68,7 @@ def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
     args = model.kernel_args()
     x, q, P, L = state.arrays()
     if model.springs is None:
-        advance_local_3d(*args, x, q, P, L, n_steps, h)
+        k3.advance_local_3d(*args, x, q, P, L, n_steps, h)
         return
     n = x.shape[0]
     nnz_max = 12 * n + 144 * len(model.springs.a)
@@ -481,16 +83,16 @@ def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
     T = np.empty((n, 3))
     Iw = np.empty((n, 3, 3))
     for _ in range(n_steps):
-        nnz = assemble_3d(*args, x, q, P, L, h, R, v, w, F, T, Iw, rows, cols, vals, rhs)
+        nnz = k3.assemble_3d(*args, x, q, P, L, h, R, v, w, F, T, Iw, rows, cols, vals, rhs)
         du = _solve(rows, cols, vals, rhs, nnz)
-        finish_3d(model.bodies, x, q, P, L, w, Iw, du, h)
+        k3.finish_3d(model.bodies, x, q, P, L, w, Iw, du, h)
 
 
 def advance_implicit_2d(model, state, n_steps: int, h: float) -> None:
     args = model.kernel_args()
     x, angle, P, L = state.arrays()
     if model.springs is None:
-        advance_local_2d(*args, x, angle, P, L, n_steps, h)
+        k2.advance_local_2d(*args, x, angle, P, L, n_steps, h)
         return
     n = x.shape[0]
     nnz_max = 3 * n + 36 * len(model.springs.a)
@@ -503,6 +105,6 @@ def advance_implicit_2d(model, state, n_steps: int, h: float) -> None:
     F = np.empty((n, 2))
     T = np.empty(n)
     for _ in range(n_steps):
-        nnz = assemble_2d(*args, x, angle, P, L, h, v, w, F, T, rows, cols, vals, rhs)
+        nnz = k2.assemble_2d(*args, x, angle, P, L, h, v, w, F, T, rows, cols, vals, rhs)
         du = _solve(rows, cols, vals, rhs, nnz)
-        finish_2d(model.bodies, x, angle, P, L, w, du, h)
+        k2.finish_2d(model.bodies, x, angle, P, L, w, du, h)

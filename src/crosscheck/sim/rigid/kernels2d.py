@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid.kernels3d import JIT
+from crosscheck.sim.rigid.kernels3d import INLINE, JIT
 
 
 @njit(**JIT)
@@ -30,7 +30,7 @@ def apply_gravity(bodies, g, F):
         F[i, 1] += bodies.mass[i] * g[1]
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def spring_point(x, angle, v, w, body, r):
     """World offset, position and velocity of the body-frame point r (relative to the com)."""
     c = np.cos(angle[body])
@@ -41,7 +41,7 @@ def spring_point(x, angle, v, w, body, r):
             v[body, 0] - w[body] * oy, v[body, 1] + w[body] * ox)
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def spring_force(springs, s, x, angle, v, w):
     a = springs.a[s]
     b = springs.b[s]
@@ -268,3 +268,152 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_step
             for c in range(2):
                 P[i, c] += hh * F[i, c]
             L[i] += hh * T[i]
+
+
+# -- implicit Euler (the method is described in implicit.py) -------------------------------
+@njit(**JIT)
+def spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds):
+    """K, D (6 x 6) of spring s's wrench (f, oa x f, -f, -ob x f) on (x_a, th_a, x_b, th_b)."""
+    a = springs.a[s]
+    b = springs.b[s]
+    oax, oay, pax, pay, vax, vay = spring_point(x, angle, v, w, a, springs.ra[s])
+    if b >= 0:
+        obx, oby, pbx, pby, vbx, vby = spring_point(x, angle, v, w, b, springs.rb[s])
+    else:
+        obx = oby = 0.0
+        pbx, pby = springs.rb[s, 0], springs.rb[s, 1]
+        vbx = vby = 0.0
+    d = np.array([pax - pbx, pay - pby])
+    dv = np.array([vax - vbx, vay - vby])
+    k = springs.stiffness[s]
+    c = springs.damping[s]
+    l0 = springs.rest_length[s]
+    length = np.sqrt(d[0] ** 2 + d[1] ** 2)
+    Kd = np.zeros((2, 2))
+    Dd = np.zeros((2, 2))
+    f = np.zeros(2)
+    if length > 0.0:
+        e = d / length
+        rate = e[0] * dv[0] + e[1] * dv[1]
+        mag = -(k * (length - l0) + c * rate)
+        pdv = dv - rate * e
+        for r in range(2):
+            f[r] = mag * e[r]
+            for col in range(2):
+                proj = (1.0 if r == col else 0.0) - e[r] * e[col]
+                Kd[r, col] = (-k * ((1.0 if r == col else 0.0) - l0 / length * proj)
+                              - c * (e[r] * pdv[col] + rate * proj) / length)
+                Dd[r, col] = -c * e[r] * e[col]
+    else:
+        Kd[0, 0] = -k
+        Kd[1, 1] = -k
+    # d(point) = dx + dth perp(o), perp(o) = (-o_y, o_x)
+    J = np.zeros((2, 6))
+    J[0, 0] = 1.0
+    J[1, 1] = 1.0
+    J[0, 2] = -oay
+    J[1, 2] = oax
+    J[0, 3] = -1.0
+    J[1, 4] = -1.0
+    J[0, 5] = oby
+    J[1, 5] = -obx
+    # turning the arm changes the point velocity w perp(o): d/dth = -w o
+    H = np.zeros((2, 6))
+    H[0, 2] = -w[a] * oax
+    H[1, 2] = -w[a] * oay
+    if b >= 0:
+        H[0, 5] = w[b] * obx
+        H[1, 5] = w[b] * oby
+    Ks[:, :] = J.T @ (Kd @ J + Dd @ H)
+    Ds[:, :] = J.T @ (Dd @ J)
+    # d(oa x f)/dth_a from turning oa: -(oa . f); d(-ob x f)/dth_b: +(ob . f)
+    Ks[2, 2] -= oax * f[0] + oay * f[1]
+    Ks[5, 5] += obx * f[0] + oby * f[1]
+
+
+@njit(**JIT)
+def assemble_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, h,
+                v, w, F, T, rows, cols, vals, rhs):
+    n = x.shape[0]
+    evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+    nnz = 0
+    for i in range(n):
+        cl = 0.0
+        ca = 0.0
+        if drag is not None:
+            cl = drag.linear[i]
+            ca = drag.angular[i]
+        for c in range(2):
+            rows[nnz] = 3 * i + c
+            cols[nnz] = 3 * i + c
+            vals[nnz] = bodies.mass[i] + h * cl
+            nnz += 1
+            rhs[3 * i + c] = h * F[i, c]
+        rows[nnz] = 3 * i + 2
+        cols[nnz] = 3 * i + 2
+        vals[nnz] = bodies.moment[i] + h * ca
+        nnz += 1
+        rhs[3 * i + 2] = h * T[i]
+    if springs is not None:
+        Ks = np.empty((6, 6))
+        Ds = np.empty((6, 6))
+        u0 = np.zeros(6)
+        dof = np.empty(6, dtype=np.int64)
+        for s in range(springs.a.shape[0]):
+            spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds)
+            a = springs.a[s]
+            b = springs.b[s]
+            m = 6 if b >= 0 else 3
+            for c in range(2):
+                dof[c] = 3 * a + c
+                u0[c] = v[a, c]
+                if b >= 0:
+                    dof[3 + c] = 3 * b + c
+                    u0[3 + c] = v[b, c]
+            dof[2] = 3 * a + 2
+            u0[2] = w[a]
+            if b >= 0:
+                dof[5] = 3 * b + 2
+                u0[5] = w[b]
+            for r in range(m):
+                ku = 0.0
+                for col in range(m):
+                    ku += Ks[r, col] * u0[col]
+                    rows[nnz] = dof[r]
+                    cols[nnz] = dof[col]
+                    vals[nnz] = -h * Ds[r, col] - h * h * Ks[r, col]
+                    nnz += 1
+                rhs[dof[r]] += h * h * ku
+    return nnz
+
+
+@njit(**JIT)
+def finish_2d(bodies, x, angle, P, L, w, du, h):
+    for i in range(x.shape[0]):
+        for c in range(2):
+            P[i, c] += bodies.mass[i] * du[3 * i + c]
+            x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+        L[i] += bodies.moment[i] * du[3 * i + 2]
+        angle[i] += h * (w[i] + du[3 * i + 2])
+
+
+@njit(**JIT)
+def advance_local_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+    n = x.shape[0]
+    v = np.empty((n, 2))
+    w = np.empty(n)
+    F = np.empty((n, 2))
+    T = np.empty(n)
+    du = np.empty(3 * n)
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        for i in range(n):
+            cl = 0.0
+            ca = 0.0
+            if drag is not None:
+                cl = drag.linear[i]
+                ca = drag.angular[i]
+            du[3 * i] = h * F[i, 0] / (bodies.mass[i] + h * cl)
+            du[3 * i + 1] = h * F[i, 1] / (bodies.mass[i] + h * cl)
+            du[3 * i + 2] = h * T[i] / (bodies.moment[i] + h * ca)
+        finish_2d(bodies, x, angle, P, L, w, du, h)

@@ -22,10 +22,14 @@ from numba import njit
 # Python exception from inside a step. No fastmath: IEEE semantics keep NaN checks valid and
 # results bit-identical from run to run.
 JIT = {"cache": True, "nogil": True, "error_model": "numpy"}
+# Small helpers called per body or per spring are inlined at numba's IR level: a call between
+# compiled functions would otherwise pay atomic reference counting on every array argument
+# (measured: 145 ns per spring evaluation as a call, 19 ns inlined).
+INLINE = dict(JIT, inline="always")
 
 
 # -- small vector helpers (scalars in, tuples out: no allocation) ------------------------------
-@njit(**JIT)
+@njit(**INLINE)
 def rotation_from_quat(q, i, R):
     """R[i] = R(q[i] / |q[i]|): valid for a quaternion slightly off unit length (RK stages)."""
     w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
@@ -41,7 +45,7 @@ def rotation_from_quat(q, i, R):
     R[i, 2, 2] = 1.0 - s * (x * x + y * y)
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def quat_exp(tx, ty, tz):
     """Unit quaternion of the rotation vector (tx, ty, tz) (exponential map), safe near zero."""
     a2 = tx * tx + ty * ty + tz * tz
@@ -56,7 +60,7 @@ def quat_exp(tx, ty, tz):
     return c, s * tx, s * ty, s * tz
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def quat_mul(aw, ax, ay, az, bw, bx, by, bz):
     """Hamilton product a * b."""
     return (aw * bw - ax * bx - ay * by - az * bz,
@@ -73,7 +77,7 @@ def normalize_quats(q):
             q[i, c] *= s
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def rotate_left(q0, i, tx, ty, tz, q_out):
     """q_out[i] = exp(t) * q0[i]: rotate body i by the world rotation vector t."""
     ew, ex, ey, ez = quat_exp(tx, ty, tz)
@@ -82,44 +86,70 @@ def rotate_left(q0, i, tx, ty, tz, q_out):
 
 
 # -- kinematics and effects ----------------------------------------------------------------------
+@njit(**INLINE)
+def body_kinematics(bodies, q, P, L, i):
+    """Scalars of body i: R(q) (row-major), v = P / m and w = R I_body^-1 R^T L (world)."""
+    qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz)  # R(q / |q|): RK stages are off unit length
+    r00 = 1.0 - s * (qy * qy + qz * qz)
+    r01 = s * (qx * qy - qw * qz)
+    r02 = s * (qx * qz + qw * qy)
+    r10 = s * (qx * qy + qw * qz)
+    r11 = 1.0 - s * (qx * qx + qz * qz)
+    r12 = s * (qy * qz - qw * qx)
+    r20 = s * (qx * qz - qw * qy)
+    r21 = s * (qy * qz + qw * qx)
+    r22 = 1.0 - s * (qx * qx + qy * qy)
+    im = bodies.inv_mass[i]
+    # body-frame angular momentum R^T L, body-frame w, world w
+    lb0 = r00 * L[i, 0] + r10 * L[i, 1] + r20 * L[i, 2]
+    lb1 = r01 * L[i, 0] + r11 * L[i, 1] + r21 * L[i, 2]
+    lb2 = r02 * L[i, 0] + r12 * L[i, 1] + r22 * L[i, 2]
+    a = bodies.inv_inertia
+    wb0 = a[i, 0, 0] * lb0 + a[i, 0, 1] * lb1 + a[i, 0, 2] * lb2
+    wb1 = a[i, 1, 0] * lb0 + a[i, 1, 1] * lb1 + a[i, 1, 2] * lb2
+    wb2 = a[i, 2, 0] * lb0 + a[i, 2, 1] * lb1 + a[i, 2, 2] * lb2
+    return (r00, r01, r02, r10, r11, r12, r20, r21, r22,
+            P[i, 0] * im, P[i, 1] * im, P[i, 2] * im,
+            r00 * wb0 + r01 * wb1 + r02 * wb2,
+            r10 * wb0 + r11 * wb1 + r12 * wb2,
+            r20 * wb0 + r21 * wb1 + r22 * wb2)
+
+
 @njit(**JIT)
 def kinematics(bodies, q, P, L, R, v, w):
-    """R = R(q); v = P / m; w = R I_body^-1 R^T L (world angular velocity)."""
-    inv_i = bodies.inv_inertia
+    """R = R(q); v = P / m; w = R I_body^-1 R^T L (world angular velocity), for every body."""
     for i in range(q.shape[0]):
-        rotation_from_quat(q, i, R)
-        im = bodies.inv_mass[i]
-        v[i, 0] = P[i, 0] * im
-        v[i, 1] = P[i, 1] * im
-        v[i, 2] = P[i, 2] * im
-        # body-frame angular momentum R^T L
-        lb0 = R[i, 0, 0] * L[i, 0] + R[i, 1, 0] * L[i, 1] + R[i, 2, 0] * L[i, 2]
-        lb1 = R[i, 0, 1] * L[i, 0] + R[i, 1, 1] * L[i, 1] + R[i, 2, 1] * L[i, 2]
-        lb2 = R[i, 0, 2] * L[i, 0] + R[i, 1, 2] * L[i, 1] + R[i, 2, 2] * L[i, 2]
-        wb0 = inv_i[i, 0, 0] * lb0 + inv_i[i, 0, 1] * lb1 + inv_i[i, 0, 2] * lb2
-        wb1 = inv_i[i, 1, 0] * lb0 + inv_i[i, 1, 1] * lb1 + inv_i[i, 1, 2] * lb2
-        wb2 = inv_i[i, 2, 0] * lb0 + inv_i[i, 2, 1] * lb1 + inv_i[i, 2, 2] * lb2
-        w[i, 0] = R[i, 0, 0] * wb0 + R[i, 0, 1] * wb1 + R[i, 0, 2] * wb2
-        w[i, 1] = R[i, 1, 0] * wb0 + R[i, 1, 1] * wb1 + R[i, 1, 2] * wb2
-        w[i, 2] = R[i, 2, 0] * wb0 + R[i, 2, 1] * wb1 + R[i, 2, 2] * wb2
+        (R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], R[i, 2, 0],
+         R[i, 2, 1], R[i, 2, 2], v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1],
+         w[i, 2]) = body_kinematics(bodies, q, P, L, i)
 
 
-@njit(**JIT)
-def apply_gravity(bodies, g, F):
-    """F_i += m_i g (at the centre of mass: no torque)."""
-    for i in range(F.shape[0]):
-        m = bodies.mass[i]
-        F[i, 0] += m * g[0]
-        F[i, 1] += m * g[1]
-        F[i, 2] += m * g[2]
+# Effect kernels. Per-body effects (gravity, drag) return the body's contribution and are
+# applied inside the one pass over bodies that also computes the kinematics; interaction and
+# sparse effects (springs, loads) scatter into F and T afterwards.
+@njit(**INLINE)
+def gravity_force(bodies, g, i):
+    """m_i g, at the centre of mass: no torque."""
+    m = bodies.mass[i]
+    return m * g[0], m * g[1], m * g[2]
 
 
-@njit(**JIT)
-def spring_point(x, R, v, w, body, r):
-    """World offset, position and velocity of the body-frame point r (relative to the com)."""
-    ox = R[body, 0, 0] * r[0] + R[body, 0, 1] * r[1] + R[body, 0, 2] * r[2]
-    oy = R[body, 1, 0] * r[0] + R[body, 1, 1] * r[1] + R[body, 1, 2] * r[2]
-    oz = R[body, 2, 0] * r[0] + R[body, 2, 1] * r[1] + R[body, 2, 2] * r[2]
+@njit(**INLINE)
+def drag_wrench(drag, i, vx, vy, vz, wx, wy, wz):
+    """F = -c v (centre of mass), tau = -c_w w (world)."""
+    cl = drag.linear[i]
+    ca = drag.angular[i]
+    return -cl * vx, -cl * vy, -cl * vz, -ca * wx, -ca * wy, -ca * wz
+
+
+@njit(**INLINE)
+def spring_point(x, R, v, w, body, r, s):
+    """World offset, position and velocity of the body-frame point r[s] (relative to the com)."""
+    r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
+    ox = R[body, 0, 0] * r0 + R[body, 0, 1] * r1 + R[body, 0, 2] * r2
+    oy = R[body, 1, 0] * r0 + R[body, 1, 1] * r1 + R[body, 1, 2] * r2
+    oz = R[body, 2, 0] * r0 + R[body, 2, 1] * r1 + R[body, 2, 2] * r2
     px = x[body, 0] + ox
     py = x[body, 1] + oy
     pz = x[body, 2] + oz
@@ -129,14 +159,14 @@ def spring_point(x, R, v, w, body, r):
     return ox, oy, oz, px, py, pz, vx, vy, vz
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def spring_force(springs, s, x, R, v, w):
     """Force on body a of spring s and the two world offsets: -(k (l - l0) + c dl/dt) e."""
     a = springs.a[s]
     b = springs.b[s]
-    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, a, springs.ra[s])
+    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, a, springs.ra, s)
     if b >= 0:
-        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, b, springs.rb[s])
+        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, b, springs.rb, s)
     else:
         obx = oby = obz = 0.0
         pbx, pby, pbz = springs.rb[s, 0], springs.rb[s, 1], springs.rb[s, 2]
@@ -176,17 +206,6 @@ def apply_springs(springs, x, R, v, w, F, T):
 
 
 @njit(**JIT)
-def apply_drag(drag, v, w, F, T):
-    """F = -c v (centre of mass), tau = -c_w w (world)."""
-    for i in range(F.shape[0]):
-        cl = drag.linear[i]
-        ca = drag.angular[i]
-        for c in range(3):
-            F[i, c] -= cl * v[i, c]
-            T[i, c] -= ca * w[i, c]
-
-
-@njit(**JIT)
 def apply_loads(loads, F, T):
     for k in range(loads.body.shape[0]):
         i = loads.body[k]
@@ -196,37 +215,57 @@ def apply_loads(loads, F, T):
 
 
 @njit(**JIT)
-def accumulate(bodies, gravity, springs, drag, loads, x, R, v, w, F, T):
-    """Net force and torque from the declared effects only (None branches compile away)."""
-    F[:] = 0.0
-    T[:] = 0.0
-    if gravity is not None:
-        apply_gravity(bodies, gravity, F)
+def evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T):
+    """Kinematics and the net force and torque of the declared effects at (x, q, P, L).
+
+    One pass over the bodies computes R, v, w and the per-body effects; springs and loads
+    scatter afterwards. Every ``is not None`` test is resolved when numba compiles the
+    specialisation for the scene's effects: an undeclared effect leaves no code in the step
+    (R is only stored when springs need it).
+    """
+    for i in range(q.shape[0]):
+        (r00, r01, r02, r10, r11, r12, r20, r21, r22, vx, vy, vz, wx, wy,
+         wz) = body_kinematics(bodies, q, P, L, i)
+        if springs is not None:
+            R[i, 0, 0], R[i, 0, 1], R[i, 0, 2] = r00, r01, r02
+            R[i, 1, 0], R[i, 1, 1], R[i, 1, 2] = r10, r11, r12
+            R[i, 2, 0], R[i, 2, 1], R[i, 2, 2] = r20, r21, r22
+        v[i, 0], v[i, 1], v[i, 2] = vx, vy, vz
+        w[i, 0], w[i, 1], w[i, 2] = wx, wy, wz
+        fx = fy = fz = tx = ty = tz = 0.0
+        if gravity is not None:
+            gx, gy, gz = gravity_force(bodies, gravity, i)
+            fx += gx
+            fy += gy
+            fz += gz
+        if drag is not None:
+            dfx, dfy, dfz, dtx, dty, dtz = drag_wrench(drag, i, vx, vy, vz, wx, wy, wz)
+            fx += dfx
+            fy += dfy
+            fz += dfz
+            tx += dtx
+            ty += dty
+            tz += dtz
+        F[i, 0], F[i, 1], F[i, 2] = fx, fy, fz
+        T[i, 0], T[i, 1], T[i, 2] = tx, ty, tz
     if springs is not None:
         apply_springs(springs, x, R, v, w, F, T)
-    if drag is not None:
-        apply_drag(drag, v, w, F, T)
     if loads is not None:
         apply_loads(loads, F, T)
 
 
-@njit(**JIT)
-def evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T):
-    """Kinematics then forces at the state (x, q, P, L)."""
-    kinematics(bodies, q, P, L, R, v, w)
-    accumulate(bodies, gravity, springs, drag, loads, x, R, v, w, F, T)
+@njit(**INLINE)
+def quat_rate_of(q, i, wx, wy, wz):
+    """dq/dt = 1/2 (0, w) * q for body i, w in the world frame."""
+    qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    return (-0.5 * (wx * qx + wy * qy + wz * qz), 0.5 * (wx * qw + wy * qz - wz * qy),
+            0.5 * (wy * qw + wz * qx - wx * qz), 0.5 * (wz * qw + wx * qy - wy * qx))
 
 
 @njit(**JIT)
 def quat_rate(q, w, dq):
-    """dq/dt = 1/2 (0, w) * q with w in the world frame."""
     for i in range(q.shape[0]):
-        qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-        wx, wy, wz = w[i, 0], w[i, 1], w[i, 2]
-        dq[i, 0] = -0.5 * (wx * qx + wy * qy + wz * qz)
-        dq[i, 1] = 0.5 * (wx * qw + wy * qz - wz * qy)
-        dq[i, 2] = 0.5 * (wy * qw + wz * qx - wx * qz)
-        dq[i, 3] = 0.5 * (wz * qw + wx * qy - wy * qx)
+        dq[i, 0], dq[i, 1], dq[i, 2], dq[i, 3] = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
 
 
 @njit(**JIT)
@@ -315,7 +354,6 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     w = np.empty((n, 3))
     F = np.empty((n, 3))
     T = np.empty((n, 3))
-    dq = np.empty((n, 4))
     xs = np.empty((n, 3))
     qs = np.empty((n, 4))
     Ps = np.empty((n, 3))
@@ -327,10 +365,15 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     hh = 0.5 * h
     h6 = h / 6.0
     for _ in range(n_steps):
-        # k1 at y
+        # k1 at y; the stage state y + h/2 k1
         evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
-        quat_rate(q, w, dq)
         for i in range(n):
+            d0, d1, d2, d3 = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
+            aq[i, 0], aq[i, 1], aq[i, 2], aq[i, 3] = d0, d1, d2, d3
+            qs[i, 0] = q[i, 0] + hh * d0
+            qs[i, 1] = q[i, 1] + hh * d1
+            qs[i, 2] = q[i, 2] + hh * d2
+            qs[i, 3] = q[i, 3] + hh * d3
             for c in range(3):
                 ax[i, c] = v[i, c]
                 aP[i, c] = F[i, c]
@@ -338,15 +381,20 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
                 xs[i, c] = x[i, c] + hh * v[i, c]
                 Ps[i, c] = P[i, c] + hh * F[i, c]
                 Ls[i, c] = L[i, c] + hh * T[i, c]
-            for c in range(4):
-                aq[i, c] = dq[i, c]
-                qs[i, c] = q[i, c] + hh * dq[i, c]
-        # k2 at y + h/2 k1, k3 at y + h/2 k2
+        # k2 at y + h/2 k1, then k3 at y + h/2 k2 (weights 2); the next stage from y
         for stage in range(2):
             evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
-            quat_rate(qs, w, dq)
             step = hh if stage == 0 else h
             for i in range(n):
+                d0, d1, d2, d3 = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
+                aq[i, 0] += 2.0 * d0
+                aq[i, 1] += 2.0 * d1
+                aq[i, 2] += 2.0 * d2
+                aq[i, 3] += 2.0 * d3
+                qs[i, 0] = q[i, 0] + step * d0
+                qs[i, 1] = q[i, 1] + step * d1
+                qs[i, 2] = q[i, 2] + step * d2
+                qs[i, 3] = q[i, 3] + step * d3
                 for c in range(3):
                     ax[i, c] += 2.0 * v[i, c]
                     aP[i, c] += 2.0 * F[i, c]
@@ -354,27 +402,23 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
                     xs[i, c] = x[i, c] + step * v[i, c]
                     Ps[i, c] = P[i, c] + step * F[i, c]
                     Ls[i, c] = L[i, c] + step * T[i, c]
-                for c in range(4):
-                    aq[i, c] += 2.0 * dq[i, c]
-                    qs[i, c] = q[i, c] + step * dq[i, c]
-        # k4 at y + h k3
+        # k4 at y + h k3, and the step
         evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
-        quat_rate(qs, w, dq)
         for i in range(n):
+            d0, d1, d2, d3 = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
+            q0 = q[i, 0] + h6 * (aq[i, 0] + d0)
+            q1 = q[i, 1] + h6 * (aq[i, 1] + d1)
+            q2 = q[i, 2] + h6 * (aq[i, 2] + d2)
+            q3 = q[i, 3] + h6 * (aq[i, 3] + d3)
+            s = 1.0 / np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+            q[i, 0], q[i, 1], q[i, 2], q[i, 3] = q0 * s, q1 * s, q2 * s, q3 * s
             for c in range(3):
                 x[i, c] += h6 * (ax[i, c] + v[i, c])
                 P[i, c] += h6 * (aP[i, c] + F[i, c])
                 L[i, c] += h6 * (aL[i, c] + T[i, c])
-            s2 = 0.0
-            for c in range(4):
-                q[i, c] += h6 * (aq[i, c] + dq[i, c])
-                s2 += q[i, c] * q[i, c]
-            s = 1.0 / np.sqrt(s2)
-            for c in range(4):
-                q[i, c] *= s
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def _dexpinv(tx, ty, tz, wx, wy, wz):
     """dexp^-1_theta(w) truncated for order 4: w - 1/2 theta x w + 1/12 theta x (theta x w)."""
     cx = ty * wz - tz * wy
@@ -497,9 +541,10 @@ def free_rotation(bodies, q, L, i, h, strang):
         sn = np.sin(0.5 * alpha)
         # body-frame rotation: q <- q * (cos, sin a)
         w0, x0, y0, z0 = quat_mul(w0, x0, y0, z0, c, sn * ax, sn * ay, sn * az)
-        # the fixed world L seen from the rotated body turns by -alpha about a (Rodrigues)
-        ca = np.cos(alpha)
-        sa = np.sin(alpha)
+        # the fixed world L seen from the rotated body turns by -alpha about a (Rodrigues;
+        # cos and sin of alpha from the half angle's)
+        ca = c * c - sn * sn
+        sa = 2.0 * sn * c
         cx = ay * lb2 - az * lb1
         cy = az * lb0 - ax * lb2
         cz = ax * lb1 - ay * lb0
@@ -596,3 +641,256 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h
             for c in range(3):
                 P[i, c] += hh * F[i, c]
                 L[i, c] += hh * T[i, c]
+
+
+# -- implicit Euler (the method is described in implicit.py) -------------------------------
+@njit(**JIT)
+def _skew(r0, r1, r2, out, o_r, o_c):
+    """out[o_r:o_r+3, o_c:o_c+3] = [r]x (the cross-product matrix)."""
+    out[o_r + 0, o_c + 0] = 0.0
+    out[o_r + 0, o_c + 1] = -r2
+    out[o_r + 0, o_c + 2] = r1
+    out[o_r + 1, o_c + 0] = r2
+    out[o_r + 1, o_c + 1] = 0.0
+    out[o_r + 1, o_c + 2] = -r0
+    out[o_r + 2, o_c + 0] = -r1
+    out[o_r + 2, o_c + 1] = r0
+    out[o_r + 2, o_c + 2] = 0.0
+
+
+@njit(**JIT)
+def _world_inertia(bodies, R, i, Iw):
+    """Iw[i] = R I_body R^T."""
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for a in range(3):
+                for b in range(3):
+                    acc += R[i, r, a] * bodies.inertia[i, a, b] * R[i, c, b]
+            Iw[i, r, c] = acc
+
+
+@njit(**JIT)
+def spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds):
+    """K = dW/dX and D = dW/du (12 x 12) of spring s's wrench W = (f, oa x f, -f, -ob x f) on the
+    local unknowns (x_a, phi_a, x_b, phi_b) and (v_a, w_a, v_b, w_b)."""
+    a = springs.a[s]
+    b = springs.b[s]
+    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, a, springs.ra, s)
+    if b >= 0:
+        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, b,
+                                                                       springs.rb, s)
+    else:
+        obx = oby = obz = 0.0
+        pbx, pby, pbz = springs.rb[s, 0], springs.rb[s, 1], springs.rb[s, 2]
+        vbx = vby = vbz = 0.0
+    d = np.array([pax - pbx, pay - pby, paz - pbz])
+    dv = np.array([vax - vbx, vay - vby, vaz - vbz])
+    k = springs.stiffness[s]
+    c = springs.damping[s]
+    l0 = springs.rest_length[s]
+    length = np.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+    Kd = np.zeros((3, 3))
+    Dd = np.zeros((3, 3))
+    f = np.zeros(3)
+    if length > 0.0:
+        e = d / length
+        rate = e[0] * dv[0] + e[1] * dv[1] + e[2] * dv[2]
+        mag = -(k * (length - l0) + c * rate)
+        pdv = dv - rate * e  # (1 - e e^T) dv
+        for r in range(3):
+            f[r] = mag * e[r]
+            for col in range(3):
+                proj = (1.0 if r == col else 0.0) - e[r] * e[col]
+                Kd[r, col] = (-k * ((1.0 if r == col else 0.0) - l0 / length * proj)
+                              - c * (e[r] * pdv[col] + rate * proj) / length)
+                Dd[r, col] = -c * e[r] * e[col]
+    else:
+        for r in range(3):
+            Kd[r, r] = -k
+    # J = [1, -[oa]x, -1, [ob]x] maps local (x, phi) or (v, w) increments to d(d) or d(dv)
+    J = np.zeros((3, 12))
+    for r in range(3):
+        J[r, r] = 1.0
+        J[r, 6 + r] = -1.0
+    _skew(-oax, -oay, -oaz, J, 0, 3)
+    _skew(obx, oby, obz, J, 0, 9)
+    # H: d(dv) from rotating the arms, -[wa]x[oa]x dphi_a + [wb]x[ob]x dphi_b
+    H = np.zeros((3, 12))
+    Sa = np.zeros((3, 3))
+    Sb = np.zeros((3, 3))
+    Wa = np.zeros((3, 3))
+    Wb = np.zeros((3, 3))
+    _skew(oax, oay, oaz, Sa, 0, 0)
+    _skew(obx, oby, obz, Sb, 0, 0)
+    _skew(w[a, 0], w[a, 1], w[a, 2], Wa, 0, 0)
+    if b >= 0:
+        _skew(w[b, 0], w[b, 1], w[b, 2], Wb, 0, 0)
+    H[:, 3:6] = -(Wa @ Sa)
+    H[:, 9:12] = Wb @ Sb
+    Kf = Kd @ J + Dd @ H
+    Ks[:, :] = J.T @ Kf
+    Ds[:, :] = J.T @ (Dd @ J)
+    # geometric terms of the torques: d(oa x f) from turning oa, d(-ob x f) from turning ob
+    Fx = np.zeros((3, 3))
+    _skew(f[0], f[1], f[2], Fx, 0, 0)
+    Ks[3:6, 3:6] += Fx @ Sa
+    Ks[9:12, 9:12] -= Fx @ Sb
+
+
+@njit(**JIT)
+def assemble_3d(bodies, gravity, springs, drag, loads, x, q, P, L, h,
+                R, v, w, F, T, Iw, rows, cols, vals, rhs):
+    """A = M - h D - h^2 K as COO triplets and rhs = h (f0 + h K u0); returns the entry count."""
+    n = x.shape[0]
+    evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+    nnz = 0
+    for i in range(n):
+        rotation_from_quat(q, i, R)  # evaluate stores R only for springs; needed here anyway
+        _world_inertia(bodies, R, i, Iw)
+        cl = 0.0
+        ca = 0.0
+        if drag is not None:
+            cl = drag.linear[i]
+            ca = drag.angular[i]
+        for c in range(3):
+            rows[nnz] = 6 * i + c
+            cols[nnz] = 6 * i + c
+            vals[nnz] = bodies.mass[i] + h * cl
+            nnz += 1
+            rhs[6 * i + c] = h * F[i, c]
+            rhs[6 * i + 3 + c] = h * T[i, c]
+            for c2 in range(3):
+                rows[nnz] = 6 * i + 3 + c
+                cols[nnz] = 6 * i + 3 + c2
+                vals[nnz] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
+                nnz += 1
+    if springs is not None:
+        Ks = np.empty((12, 12))
+        Ds = np.empty((12, 12))
+        u0 = np.zeros(12)
+        dof = np.empty(12, dtype=np.int64)
+        for s in range(springs.a.shape[0]):
+            spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds)
+            a = springs.a[s]
+            b = springs.b[s]
+            m = 12 if b >= 0 else 6
+            for c in range(3):
+                dof[c] = 6 * a + c
+                dof[3 + c] = 6 * a + 3 + c
+                u0[c] = v[a, c]
+                u0[3 + c] = w[a, c]
+                if b >= 0:
+                    dof[6 + c] = 6 * b + c
+                    dof[9 + c] = 6 * b + 3 + c
+                    u0[6 + c] = v[b, c]
+                    u0[9 + c] = w[b, c]
+            for r in range(m):
+                ku = 0.0
+                for col in range(m):
+                    ku += Ks[r, col] * u0[col]
+                    rows[nnz] = dof[r]
+                    cols[nnz] = dof[col]
+                    vals[nnz] = -h * Ds[r, col] - h * h * Ks[r, col]
+                    nnz += 1
+                rhs[dof[r]] += h * h * ku
+    return nnz
+
+
+@njit(**JIT)
+def backward_rotation(bodies, q, L, i, h):
+    """q[i] <- exp(phi) q[i] with phi = h w(exp(phi) q[i], L[i]): backward Euler for the
+    orientation (the angular velocity of the *end* of the step). Newton on
+    G(phi) = phi - h w(phi), with dw = (-[w]x + I_w^-1 [L]x) dpsi for a small world rotation dpsi
+    of the body and dpsi = dexp(phi) dphi, dexp(phi) = 1 + [phi]x / 2 + [phi]x^2 / 6. Converges
+    quadratically from phi = h w(q_n, L); the iteration count is bounded for safety."""
+    ibinv = bodies.inv_inertia[i]
+    R = np.empty((1, 3, 3))
+    qt = np.empty((1, 4))
+    q0 = np.empty((1, 4))
+    for c in range(4):
+        q0[0, c] = q[i, c]
+    lw = np.array([L[i, 0], L[i, 1], L[i, 2]])
+    phi = np.zeros(3)
+    Lx = np.zeros((3, 3))
+    _skew(lw[0], lw[1], lw[2], Lx, 0, 0)
+    for _ in range(30):
+        rotate_left_row(q0, phi, qt)
+        rotation_from_quat(qt, 0, R)
+        Rm = R[0]
+        iw_inv = Rm @ ibinv @ Rm.T
+        w = iw_inv @ lw
+        G = phi - h * w
+        Wx = np.zeros((3, 3))
+        Px = np.zeros((3, 3))
+        _skew(w[0], w[1], w[2], Wx, 0, 0)
+        _skew(phi[0], phi[1], phi[2], Px, 0, 0)
+        dexp = np.eye(3) + 0.5 * Px + (Px @ Px) / 6.0
+        J = np.eye(3) - h * ((iw_inv @ Lx - Wx) @ dexp)
+        step = np.linalg.solve(J, G)
+        phi = phi - step
+        size = np.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
+        if not size > 1e-15 * (1e-300 + np.sqrt(phi[0] ** 2 + phi[1] ** 2 + phi[2] ** 2)):
+            break
+    rotate_left_row(q0, phi, qt)
+    for c in range(4):
+        q[i, c] = qt[0, c]
+
+
+@njit(**JIT)
+def rotate_left_row(q0, phi, out):
+    rotate_left(q0, 0, phi[0], phi[1], phi[2], out)
+
+
+@njit(**JIT)
+def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
+    """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L."""
+    for i in range(x.shape[0]):
+        for c in range(3):
+            P[i, c] += bodies.mass[i] * du[6 * i + c]
+            L[i, c] += (Iw[i, c, 0] * du[6 * i + 3] + Iw[i, c, 1] * du[6 * i + 4]
+                        + Iw[i, c, 2] * du[6 * i + 5])
+            x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+        backward_rotation(bodies, q, L, i, h)
+    normalize_quats(q)
+
+
+@njit(**JIT)
+def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+    """Backward Euler without springs: the system is block-diagonal, solved body by body."""
+    n = x.shape[0]
+    R = np.empty((n, 3, 3))
+    v = np.empty((n, 3))
+    w = np.empty((n, 3))
+    F = np.empty((n, 3))
+    T = np.empty((n, 3))
+    Iw = np.empty((n, 3, 3))
+    du = np.empty(6 * n)
+    A = np.empty((3, 3))
+    for _ in range(n_steps):
+        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        for i in range(n):
+            rotation_from_quat(q, i, R)
+            _world_inertia(bodies, R, i, Iw)
+            cl = 0.0
+            ca = 0.0
+            if drag is not None:
+                cl = drag.linear[i]
+                ca = drag.angular[i]
+            for c in range(3):
+                du[6 * i + c] = h * F[i, c] / (bodies.mass[i] + h * cl)
+                for c2 in range(3):
+                    A[c, c2] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
+            # 3 x 3 solve by the adjugate (A is symmetric positive definite)
+            c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+            c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+            c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+            det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+            b0, b1, b2 = h * T[i, 0], h * T[i, 1], h * T[i, 2]
+            du[6 * i + 3] = (c00 * b0 + (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) * b1
+                             + (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) * b2) / det
+            du[6 * i + 4] = (c01 * b0 + (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) * b1
+                             + (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) * b2) / det
+            du[6 * i + 5] = (c02 * b0 + (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) * b1
+                             + (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * b2) / det
+        finish_3d(bodies, x, q, P, L, w, Iw, du, h)
