@@ -104,7 +104,7 @@ def test_dam_break_over_an_obstacle(runs):
 
     st = FluidState(scene.fluid, np.array([0.0, -9.81]), INTEGRATORS["semi_lagrangian"])
     solid = st.solid
-    assert solid.sum() == 100                        # 10 x 10 cells of 2.38 mm
+    assert 100 <= solid.sum() <= 121                 # a 25 mm block is 10.5 cells of 2.38 mm
     u = rec.fields["u"][-1]
     v = rec.fields["v"][-1]
     inner_u = solid[1:] & solid[:-1]
