@@ -46,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     except CrosscheckError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `crosscheck show --json FILE | head`: the reader left, not an error
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -787,7 +787,6 @@ BAD_3D = [
     (setting("effects.loads[0].torque", 0.5), "effects.loads[0].torque", "an array of 3"),
     # [reference]
     (setting("reference.kind", "magic"), "reference.kind", "one of"),
-    (deleting("reference.dt"), "reference.dt", "required when reference.kind = 'fine-step'"),
     (both(setting("reference.kind", "analytic")), "reference.solution",
      "required when reference.kind = 'analytic'"),
     (setting("reference", {"kind": "table"}), "reference.table", "required when"),
@@ -942,3 +941,28 @@ def test_the_committed_not_closed_mesh_is_refused():
     case["bodies"][4]["shape"] = {"mesh": {"file": "../meshes/not_closed.obj"}}
     exc = refused(case, "bodies[4].shape.mesh.file", "a mesh file that is a closed")
     assert "not_closed.obj" in str(exc) and "open edges" in str(exc)
+
+
+def test_fine_step_reference_may_leave_its_step_to_the_comparer():
+    # Without reference.dt the comparer runs the reference at run.dt / FINE_STEP_FACTOR.
+    from crosscheck.compare.reference import FINE_STEP_FACTOR
+    from crosscheck.scene.loader import load_case_text
+
+    scene = load_case_text("""
+[case]
+name = "x"
+dimension = 3
+[run]
+duration = 1.0
+dt = 1e-3
+[[bodies]]
+name = "b"
+shape = { sphere = { radius = 0.1 } }
+mass = 1.0
+position = [0, 0, 0]
+[reference]
+kind = "fine-step"
+engine = "inhouse"
+""")
+    assert scene.reference.kind == "fine-step" and scene.reference.dt is None
+    assert FINE_STEP_FACTOR >= 10  # a reference that is not much finer would not be one
