@@ -391,7 +391,7 @@ def test_drag_on_centred_body_is_exact_joint_damping(errors):
     body = traj.meta["effective"]["bodies"][0]
     assert body["linear_drag"] == body["angular_drag"] == "joint damping"
     assert body["dof_damping"] == [0.8] * 3 + [0.02] * 3
-    assert traj.meta["effective"]["stepping"].startswith("mj_step")
+    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
     assert coarse < 1e-10
 
 
@@ -445,7 +445,8 @@ torque = [0.02, 0.0, -0.01]
                                    rtol=0, atol=1e-12)
     traj, err = errors(scene, "rk4", 1e-3)
     assert err < 1e-9  # constant loads are exact for RK4 up to the rotation coupling
-    assert traj.meta["effective"]["stepping"].startswith("mj_step")
+    # Loads reach the stateless rollout as constant xfrc_applied controls.
+    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
 
 
 # -- 2D: planar joints through the centre of mass ------------------------------------------------
@@ -549,20 +550,48 @@ position = [0.0, 0.0, 1.0]
     assert ENGINE.not_applicable(scene3d(), "rk4") is None
 
 
-def test_batched_stepping_equals_step_by_step_and_repeats():
-    # mj_step(m, d, nstep=k) is k steps: bit-identical to k single calls, and runs repeat bit
-    # for bit.
-    scene = scene3d(effects=SPRING)
-    a = ENGINE.build(scene, "rk4", 1e-3)
-    b = ENGINE.build(scene, "rk4", 1e-3)
-    a.advance(250)
+LOAD = """
+[[effects.loads]]
+body = "body"
+force = [1.0, -2.0, 0.5]
+torque = [0.02, 0.0, -0.01]
+"""
+
+
+@pytest.mark.parametrize("effects", [SPRING, SPRING + LOAD], ids=["spring", "spring+load"])
+def test_rollout_nstep_and_single_steps_are_bit_identical(effects):
+    # The default recorder (mujoco.rollout in chunks, loads passed as xfrc_applied controls),
+    # mj_step(m, d, nstep=k) per sample and k single mj_step calls are the same arithmetic:
+    # bit-identical samples. Runs repeat bit for bit.
+    scene = scene3d(effects=effects)
+    nstep = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "nstep"')
+    a, b = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(nstep, "rk4", 1e-3)
+    assert a.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    assert b.meta["effective"]["stepping"].startswith("mj_step")
+    for name in ("com", "quat", "vel", "omega"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    again = ENGINE.run(scene, "rk4", 1e-3)
+    np.testing.assert_array_equal(again.quat, a.quat)
+
+    sim = ENGINE.build(scene, "rk4", 1e-3)
+    single = ENGINE.build(scene, "rk4", 1e-3)
+    sim.advance(250)
     for _ in range(250):
-        mujoco.mj_step(b.model, b.data)
-    np.testing.assert_array_equal(a.data.qpos, b.data.qpos)
-    np.testing.assert_array_equal(a.data.qvel, b.data.qvel)
-    t1, t2 = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(scene, "rk4", 1e-3)
-    np.testing.assert_array_equal(t1.quat, t2.quat)
-    np.testing.assert_array_equal(t1.com, t2.com)
+        mujoco.mj_step(single.model, single.data)
+    np.testing.assert_array_equal(sim.data.qpos, single.data.qpos)
+    np.testing.assert_array_equal(sim.data.qvel, single.data.qvel)
+
+
+def test_rollout_chunks_join_exactly(monkeypatch):
+    # Long runs are rolled out in chunks (memory bound); chunk boundaries must not show.
+    import crosscheck.engines.mujoco as adapter
+
+    scene = scene3d(duration=0.5, effects=SPRING)
+    whole = ENGINE.run(scene, "euler", 1e-3)
+    monkeypatch.setattr(adapter, "ROLLOUT_CHUNK_BYTES", 8 * 14 * 30)  # 3 samples per chunk
+    chunked = ENGINE.run(scene, "euler", 1e-3)
+    np.testing.assert_array_equal(whole.com, chunked.com)
+    np.testing.assert_array_equal(whole.quat, chunked.quat)
 
 
 def test_meta_reads_settings_back():
@@ -578,28 +607,31 @@ def test_meta_reads_settings_back():
     np.testing.assert_allclose(np.diff(traj.t), 0.01, rtol=1e-12)
 
 
-def test_blow_up_is_a_result_not_a_reset(tmp_path, monkeypatch):
-    # A spring too stiff for the step (w h = 2.2 > 2): semi-implicit Euler's amplitude grows by
-    # 2.4 per step until it overflows, ~0.4 s in. The run ends with a failure and its time; it
-    # does not raise, and MuJoCo does not silently reset the state (autoreset disabled).
+@pytest.mark.parametrize("stepping", ["rollout", "nstep"])
+def test_blow_up_is_a_result_not_a_reset(stepping, tmp_path, monkeypatch):
+    # A spring too stiff for the step: w = 201 rad/s at h = 0.01 (w h = 2.01 > 2), so
+    # semi-implicit Euler's amplitude grows by 1.22 per step. MuJoCo flags the state once
+    # |qacc| > 1e10 (x ~ 2.5e5 m, about 0.65 s in). The run ends with a failure at a sample time;
+    # it does not raise, and MuJoCo does not silently reset the state (autoreset disabled).
     monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
     effects = """
 [[effects.springs]]
 a = "body"
 anchor = [0.1, -0.2, 0.0]
-stiffness = 9.68e6
+stiffness = 80804.0
 """
-    scene = scene3d(duration=2.0, com=[0, 0, 0], effects=effects, omega=(0, 0, 0),
-                    velocity=(0, 0, 0))
-    traj = ENGINE.run(scene, "euler", 1e-3)
-    assert traj.failure is not None and traj.failure["reason"] == "non-finite state"
-    assert 0.2 < traj.failure["time"] < 1.0
-    assert len(traj.t) == round(traj.failure["time"] / 0.01) and np.all(np.isfinite(traj.com))
-    assert np.max(np.abs(traj.com[-1])) > 1e100
-    assert traj.meta["effective"]["warnings"].get("mjWARN_BADQACC", 0) > 0
-    # Sensitivity: with MuJoCo's default autoreset the same run stays finite (reset to qpos0 and
-    # time 0 over and over), so no recorder could see the blow-up.
-    sim = ENGINE.build(scene, "euler", 1e-3)
+    options = f'[engine_options.mujoco]\nstepping = "{stepping}"'
+    scene = scene3d(duration=3.0, dt=0.01, com=[0, 0, 0], effects=effects, omega=(0, 0, 0),
+                    velocity=(0, 0, 0), options=options)
+    traj = ENGINE.run(scene, "euler", 0.01)
+    assert traj.failure is not None and traj.failure["reason"].startswith("MuJoCo flagged")
+    assert 0.4 < traj.failure["time"] < 1.5
+    assert len(traj.t) == round(traj.failure["time"] / 0.01)
+    assert np.all(np.isfinite(traj.com)) and np.all(np.abs(traj.com) < 1e10)
+    assert np.max(np.abs(traj.com[-1, 0] - traj.com[0, 0])) > 1e3  # it did grow
+    # Sensitivity: with MuJoCo's default autoreset the same stepping stays finite (reset to
+    # qpos0 and time 0 over and over), so no recorder could see the blow-up.
+    sim = ENGINE.build(scene, "euler", 0.01)
     sim.model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-    sim.advance(1000)
-    assert np.all(np.isfinite(sim.data.qpos)) and sim.data.time < 0.01
+    sim.advance(300)
+    assert np.all(np.isfinite(sim.data.qpos)) and sim.data.time < 1.0

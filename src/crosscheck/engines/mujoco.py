@@ -38,7 +38,6 @@ after the run, vectorised (so MuJoCo's derived arrays, stale after ``mj_step``, 
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -53,8 +52,10 @@ from crosscheck.state import Trajectory, TrajectoryRecorder
 
 try:  # the registry imports this module lazily; a missing mujoco is "not applicable"
     import mujoco
+    from mujoco import rollout as _rollout
 except ImportError:  # pragma: no cover - mujoco is a declared dependency
     mujoco = None
+    _rollout = None
 
 # Integrator names, MuJoCo's default (Euler) first.
 INTEGRATORS: tuple[str, ...] = ("euler", "rk4", "implicit", "implicitfast", "discrete")
@@ -82,7 +83,14 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "eulerdamp": ((True, False), True),
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
+    "stepping": (("rollout", "nstep"), "rollout"),
 }
+
+# A run fails at the first sample at or after which MuJoCo's own check fired (mj_checkPos,
+# mj_checkVel, mj_checkAcc: NaN, Inf or a value beyond mjMAXVAL = 1e10).
+_UNSTABLE = "MuJoCo flagged an instability (NaN, Inf or |value| > 1e10 in qpos, qvel or qacc)"
+# Largest rollout chunk kept in memory at once (every step's state is written by rollout).
+ROLLOUT_CHUNK_BYTES = 4 << 20
 
 _SHAPES_3D = ("sphere", "box", "capsule", "cylinder", "mesh")
 _SHAPES_2D = ("circle", "box", "polygon")
@@ -425,6 +433,134 @@ class MujocoModel:
             apply()
             step(m, d)
 
+    @property
+    def stepping_mode(self) -> str:
+        if self.per_step_forces:
+            return "python loop: per-step xfrc_applied drag, mj_step"
+        if self.options["stepping"] == "nstep":
+            return "mj_step(m, d, nstep=steps_per_sample) per sample"
+        return "mujoco.rollout in chunks, every steps_per_sample-th state kept"
+
+    def record(self, n_samples: int, k: int) -> tuple[np.ndarray, np.ndarray, float, float,
+                                                      int, str | None]:
+        """Step from the current state, sampling every k steps.
+
+        Returns (qpos (n, nq), qvel (n, nv), stepping seconds, recording seconds spent in the
+        loop, number of valid samples, failure reason or None). Sample 0 is the current state.
+        A sample is invalid from the first one at which MuJoCo's instability check (NaN, Inf
+        or |value| > 1e10 in qpos, qvel or qacc) has fired or the state is not finite.
+        """
+        if self.per_step_forces or self.options["stepping"] == "nstep":
+            return self._record_loop(n_samples, k)
+        return self._record_rollout(n_samples, k)
+
+    def _record_loop(self, n, k):
+        m, d = self.model, self.data
+        qpos = np.empty((n, m.nq))
+        qvel = np.empty((n, m.nv))
+        qpos[0], qvel[0] = d.qpos, d.qvel
+        # Row views made before the loop: a copy per sample is then one C call per array.
+        rows_q, rows_v, copy = list(qpos), list(qvel), np.copyto
+        qp, qv = d.qpos, d.qvel
+        clock = time.perf_counter
+        stepping = 0.0
+        done = 1
+        start = clock()
+        advance = self.advance if self.per_step_forces else (
+            lambda nsteps, _step=mujoco.mj_step: _step(m, d, nsteps))
+        # MuJoCo's instability counters (the flags the rollout stops at), read once a sample.
+        warning = d.warning
+        flags = [int(getattr(mujoco.mjtWarning, w)) for w in
+                 ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS")]
+        flagged = None
+        for i in range(1, n):
+            t0 = clock()
+            advance(k)
+            stepping += clock() - t0
+            copy(rows_q[i], qp)
+            copy(rows_v[i], qv)
+            done = i + 1
+            if warning[flags[0]].number or warning[flags[1]].number \
+                    or warning[flags[2]].number:
+                flagged = i
+                break
+        in_loop = clock() - start - stepping
+        if flagged is not None:
+            return qpos, qvel, stepping, in_loop, flagged, _UNSTABLE
+        bad = ~(np.all(np.isfinite(qpos[:done]), axis=1) & np.all(np.isfinite(qvel[:done]),
+                                                                  axis=1))
+        if bad.any():
+            return qpos, qvel, stepping, in_loop, int(np.argmax(bad)), "non-finite state"
+        return qpos, qvel, stepping, in_loop, done, None
+
+    def _record_rollout(self, n, k):
+        m, d = self.model, self.data
+        spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        nstate = mujoco.mj_stateSize(m, spec)
+        init = np.empty((1, nstate))
+        mujoco.mj_getState(m, d, init[0], spec)
+        # The full-physics state is [time, qpos, qvel, ...] (mjtState bit order).
+        qs, vs = slice(1, 1 + m.nq), slice(1 + m.nq, 1 + m.nq + m.nv)
+        qpos = np.empty((n, m.nq))
+        qvel = np.empty((n, m.nv))
+        qpos[0], qvel[0] = init[0, qs], init[0, vs]
+        # rollout is stateless: applied forces must be passed as controls (constant here).
+        if np.any(self._loads):
+            control_spec = int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
+            control = self._loads.reshape(1, 1, -1).copy()
+        else:
+            control_spec, control = int(mujoco.mjtState.mjSTATE_CTRL), None
+        per_chunk = max(1, ROLLOUT_CHUNK_BYTES // (8 * nstate * k)) * k
+        total = (n - 1) * k
+        buf = np.empty((1, min(per_chunk, max(total, 1)), nstate))
+        roller = _rollout.Rollout(nthread=0)
+        clock = time.perf_counter
+        stepping = 0.0
+        start = clock()
+        filled = 1
+        failure = None
+        t_last = init[0, 0]
+        try:
+            while filled < n:
+                steps = min(per_chunk, (n - filled) * k)
+                out = buf[:, :steps]
+                t0 = clock()
+                roller.rollout(m, d, init, control, control_spec=control_spec, nstep=steps,
+                               state=out)
+                stepping += clock() - t0
+                times = out[0, :, 0]
+                # A diverged rollout stops stepping and repeats its last state: time stalls.
+                stalled = np.nonzero(np.diff(times, prepend=t_last) <= 0)[0]
+                if stalled.size:
+                    # Row j holds step j + 1; the last state stepped (row stalled - 1) is the
+                    # one MuJoCo flagged: keep only samples before it.
+                    first = int(stalled[0])
+                    if first == 0:
+                        filled -= 1  # the previous chunk's last sample was the flagged state
+                    got = max(0, (first - 1) // k)
+                else:
+                    got = steps // k
+                rows = out[0, k - 1:got * k:k]
+                qpos[filled:filled + got] = rows[:, qs]
+                qvel[filled:filled + got] = rows[:, vs]
+                filled += got
+                if stalled.size:
+                    failure = _UNSTABLE
+                    break
+                init[0] = out[0, -1]
+                t_last = init[0, 0]
+        finally:
+            roller.close()
+        in_loop = clock() - start - stepping
+        good = np.all(np.isfinite(qpos[:filled]), axis=1) & np.all(np.isfinite(qvel[:filled]),
+                                                                      axis=1)
+        if not good.all():
+            return qpos, qvel, stepping, in_loop, int(np.argmin(good)), "non-finite state"
+        if failure is None:
+            # Leave data at the final state, as the step loop does.
+            mujoco.mj_setState(m, d, init[0], spec)
+        return qpos, qvel, stepping, in_loop, filled, failure
+
     # -- read back ------------------------------------------------------------------------
     def effective(self) -> dict[str, Any]:
         """Settings read back from the compiled model, not from what was asked for."""
@@ -490,8 +626,7 @@ class MujocoModel:
             "springs": springs,
             "loads": "constant xfrc_applied (force at the centre of mass, world torque)"
                      if self.scene.effects.loads else "none",
-            "stepping": ("python loop, per-step xfrc_applied drag" if self.per_step_forces
-                         else "mj_step(m, d, nstep=steps_per_sample)"),
+            "stepping": self.stepping_mode,
             "warnings": warnings,
             "options": dict(self.options),
         }
@@ -538,59 +673,28 @@ class MujocoEngine(EngineBase):
             raise EngineUnavailable(f"mujoco: {reason}")
         plan = sampling_plan(scene, dt)
         sim = self.build(scene, integrator, dt)
-        m, d = sim.model, sim.data
-        n, k = plan.n_samples, plan.steps_per_sample
-        qpos = np.empty((n, m.nq))
-        qvel = np.empty((n, m.nv))
-        qpos[0], qvel[0] = d.qpos, d.qvel
-        # Row views made before the loop: a copy per sample is then one C call per array.
-        rows_q, rows_v, copy = list(qpos), list(qvel), np.copyto
-        qp, qv = d.qpos, d.qvel
-        clock = time.perf_counter
-        stepping = 0.0
-        done = 1
-        start = clock()
-        if sim.per_step_forces:
-            advance = sim.advance
-        else:
-            def advance(nsteps, _step=mujoco.mj_step):
-                _step(m, d, nsteps)
-        for i in range(1, n):
-            t0 = clock()
-            advance(k)
-            stepping += clock() - t0
-            copy(rows_q[i], qp)
-            copy(rows_v[i], qv)
-            done = i + 1
-            # A blow-up stops the run early; checked every 64 samples to keep recording cheap
-            # (the exact first non-finite sample is found after the loop).
-            if not i & 63 and not (math.isfinite(float(qp.sum()))
-                                   and math.isfinite(float(qv.sum()))):
-                break
-        loop = clock() - start
-        t_conv = clock()
-        traj = self._trajectory(scene, integrator, dt, plan, sim, qpos[:done], qvel[:done])
-        conversion = clock() - t_conv
+        qpos, qvel, stepping, in_loop, good, reason = sim.record(plan.n_samples,
+                                                                 plan.steps_per_sample)
+        t_conv = time.perf_counter()
+        traj = self._trajectory(scene, integrator, dt, plan, sim, qpos[:good], qvel[:good],
+                                reason)
+        conversion = time.perf_counter() - t_conv
+        k = plan.steps_per_sample
         # Settings read back after the run (warning counters included); not part of recording.
         traj.meta["effective"] = sim.effective()
         traj.meta["effective"]["steps_per_sample"] = k
         traj.meta["wall_time"] = stepping
-        traj.meta["wall_time_recording"] = (loop - stepping) + conversion
+        traj.meta["wall_time_recording"] = in_loop + conversion
         return traj
 
-    def _trajectory(self, scene, integrator, dt, plan, sim: MujocoModel, qpos, qvel
-                    ) -> Trajectory:
-        n = len(qpos)
+    def _trajectory(self, scene, integrator, dt, plan, sim: MujocoModel, qpos, qvel,
+                    reason: str | None) -> Trajectory:
+        good = len(qpos)
         com, rot, vel, omega = sim.convert(qpos, qvel)
         rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), scene.dimension)
-        finite = np.ones(n, bool)
-        for arr in (com, rot, vel, omega):
-            finite &= np.all(np.isfinite(arr.reshape(n, -1)), axis=1)
-        good = n if finite.all() else int(np.argmin(finite))
         rec.t[:good] = np.arange(good) * plan.steps_per_sample * dt
-        rec.com[:good], rec.rot[:good], rec.vel[:good], rec.omega[:good] = (
-            com[:good], rot[:good], vel[:good], omega[:good])
+        rec.com[:good], rec.rot[:good], rec.vel[:good], rec.omega[:good] = com, rot, vel, omega
         rec.count = good
-        if good < n:
-            rec.fail(plan.time(good), "non-finite state")
+        if reason is not None:
+            rec.fail(plan.time(good), reason)
         return rec.finish(self.base_meta(scene, integrator, dt))
