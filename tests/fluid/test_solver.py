@@ -179,6 +179,17 @@ def test_velocity_extension_is_constant_along_normals():
     assert np.all(u[:, 16 + 6:] == 0.0)              # beyond the band: zero
 
 
+def test_adapter_step_is_a_cap_unless_fixed(fluid_case):
+    scene = fluid_case("dam_break", 0.05)
+    rec = run_fluid(scene, "semi_lagrangian", scene.run.dt)  # what the engine adapter passes
+    assert rec.failure is None and rec.meta["dt_mode"] == "cfl"
+    assert rec.meta["cfl_max_realised"] <= scene.fluid.cfl + 1e-9
+    fixed = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, time_step="fixed"))
+    rec = run_fluid(fixed, "semi_lagrangian", 2.5e-4)
+    assert rec.failure is None and rec.meta["dt"]["min"] == pytest.approx(2.5e-4)
+    assert rec.meta["dt"]["steps"] == 200
+
+
 def test_integrator_registry(fluid_case):
     assert set(INTEGRATORS) == {"semi_lagrangian", "maccormack", "particle_levelset"}
     with pytest.raises(ValueError):
@@ -206,6 +217,7 @@ def test_record_round_trip(tmp_path, fluid_case):
 
 def test_cfl_violation_is_reported_not_raised(fluid_case):
     scene = fluid_case("dam_break", 0.1)
+    scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, time_step="fixed"))
     rec = run_fluid(scene, "semi_lagrangian", dt=0.01)      # fixed step, far above CFL
     assert rec.failure is not None
     assert "CFL" in rec.failure["reason"]
@@ -221,6 +233,7 @@ def test_losing_the_fluid_is_reported(fluid_case):
     assert 0 < rec.failure["time"] < 1.0
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_non_finite_values_are_reported(fluid_case):
     scene = fluid_case("tank_at_rest", 0.5)
     scene = dataclasses.replace(scene, effects=dataclasses.replace(

@@ -139,6 +139,7 @@ class FluidSpec:
     kinematic_viscosity: float = 0.0
     cfl: float = 1.0
     cfl_limit: float = 2.0
+    time_step: str = "cfl"               # "cfl": adaptive, capped by the given dt; "fixed"
     redistance_every: int = 1
     redistancing: str = "fast_sweeping"
     pressure_tolerance: float = 1e-6
@@ -258,6 +259,7 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
     cfl_limit = f.number("cfl_limit", max(2.0 * cfl, cfl + 1.0), positive=True)
     if cfl_limit < cfl:
         raise f.error("cfl_limit", f"a number >= fluid.cfl ({cfl})", cfl_limit)
+    time_step = f.string("time_step", "cfl", choices=("cfl", "fixed"))
     redistance_every = f.integer("redistance_every", 1, minimum=1)
     redistancing = f.string("redistancing", "fast_sweeping",
                             choices=("fast_sweeping", "fast_marching"))
@@ -299,7 +301,7 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
     f.done()
     return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
                      obstacles=obstacles, initial=tuple(parts), density=density,
-                     kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit,
+                     kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit, time_step=time_step,
                      redistance_every=redistance_every, redistancing=redistancing,
                      pressure_tolerance=ptol,
                      min_volume_fraction=min_vol, prescribed_velocity=prescribed,

@@ -361,8 +361,11 @@ def fluid_threads() -> int:
 def run_fluid(scene: Any, integrator: str | None = None, dt: float | None = None) -> FluidRecord:
     """Run ``scene.fluid`` with the named in-house integrator.
 
-    ``dt=None``: adaptive step ``min(run.dt, cfl dx / u_max)``, shortened to land on the sample
-    times. A number: that fixed step (a sweep), and exceeding ``fluid.cfl_limit`` is a failure.
+    ``dt`` is the step the engine adapter or a sweep asks for (``None``: ``run.dt``). With
+    ``fluid.time_step = "cfl"`` (default) it is the *largest* step: the step taken is
+    ``min(dt, cfl dx / u_max)``, shortened to land on the sample times. With ``"fixed"`` every step
+    is ``dt`` and a step beyond ``fluid.cfl_limit`` is a failure (the stability frontier of a
+    sweep).
     """
     previous = numba.get_num_threads()
     numba.set_num_threads(fluid_threads())
@@ -381,6 +384,9 @@ def _run_fluid(scene: Any, integrator: str | None, dt: float | None) -> FluidRec
     run = scene.run
     duration = float(run.duration)
     max_dt = float(run.dt) if getattr(run, "dt", None) else duration / 100.0
+    if dt is not None:
+        max_dt = float(dt)
+    fixed = spec.time_step == "fixed"
     sample_every = float(getattr(run, "sample_every", None) or max_dt)
     gravity = _scene_gravity(scene, spec.dimension)
 
@@ -429,7 +435,7 @@ def _run_fluid(scene: Any, integrator: str | None, dt: float | None) -> FluidRec
         if not math.isfinite(umax) or not np.isfinite(st.phi).all():
             failure = {"time": t, "reason": "non-finite velocity or level set"}
             break
-        if dt is None:
+        if not fixed:
             # sqrt(g dx): what the fluid can gain falling one cell, so a fluid at rest under
             # gravity does not take an unbounded first step (Bridson's estimate)
             u_est = umax + (math.sqrt(g_mag * st.dx) if st.has_surface else 0.0)
@@ -441,7 +447,7 @@ def _run_fluid(scene: Any, integrator: str | None, dt: float | None) -> FluidRec
             gap = min(next_sample, duration) - t
             h = gap / math.ceil(gap / h - 1e-9)
         else:
-            h = float(dt)
+            h = min(max_dt, duration - t)
             if umax * h / st.dx > spec.cfl_limit:
                 failure = {"time": t, "reason": f"CFL bound exceeded: u_max dt/dx = "
                                                 f"{umax * h / st.dx:.3g} > {spec.cfl_limit:g}"}
@@ -481,7 +487,7 @@ def _run_fluid(scene: Any, integrator: str | None, dt: float | None) -> FluidRec
         "integrator_description": scheme.description,
         "grid": {"nx": st.nx, "ny": st.ny, "dx": st.dx, "domain": [st.lx, st.ly],
                  "obstacle_cells": int(st.solid.sum())},
-        "dt_mode": "adaptive" if dt is None else "fixed",
+        "dt_mode": "fixed" if fixed else "cfl",
         "dt": {"min": min(dts) if dts else None, "max": max(dts) if dts else None,
                "mean": (sum(dts) / n) if n else None, "steps": n, "max_allowed": max_dt},
         "cfl": spec.cfl, "cfl_limit": spec.cfl_limit, "cfl_max_realised": cfl_seen,
