@@ -8,7 +8,14 @@ t1``, ``h = t1 - t0``, ``s = (t - t0) / h``:
   ``h00 = 2s^3 - 3s^2 + 1, h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2``, using the
   reference's own centre-of-mass velocities as the end slopes (central finite differences of the
   positions where the reference gives no velocity); error O(h^4);
-* 3D orientations: spherical linear interpolation (slerp) of the sign-aligned quaternions;
+* 3D orientations: where the reference gives angular velocities, a cubic Hermite curve on the
+  rotation group, ``q(s) = q0 exp(r(s))`` with ``r`` the cubic Hermite in rotation vectors from
+  ``r(0) = 0`` to ``r(1) = log(q0^* q1)`` whose end slopes are the body-frame angular velocities
+  ``h R0^T w0`` and ``h Jr^-1(r(1)) R1^T w1`` (``Jr`` the right Jacobian of SO(3)), error
+  O(h^4) like the positions; otherwise (no angular velocity) spherical linear interpolation
+  (slerp) of the sign-aligned quaternions, exact only for rotation about a fixed axis. Plain
+  slerp between 0.01 s samples of a nutating body (tennis racket, 5 rad/s) is off by 2e-4 rad,
+  more than an RK4 run's own error, hence the Hermite curve;
 * 2D angles: cubic Hermite with the angular velocity as slope, like positions;
 * linear and angular velocities: linear interpolation.
 
@@ -110,6 +117,54 @@ def slerp(t_src: np.ndarray, quats: np.ndarray, times: np.ndarray) -> np.ndarray
     return out
 
 
+def _quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vector of unit quaternions (..., 4), shortest arc."""
+    q = np.where(q[..., :1] < 0, -q, q)
+    v = q[..., 1:]
+    nv = np.linalg.norm(v, axis=-1, keepdims=True)
+    theta = 2.0 * np.arctan2(nv, q[..., :1])
+    small = nv < 1e-12
+    return np.where(small, 2.0 * v, theta * v / np.where(small, 1.0, nv))
+
+
+def _jr_inv(r: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Inverse right Jacobian of SO(3) at rotation vector r applied to w (both (..., 3))."""
+    theta = np.linalg.norm(r, axis=-1, keepdims=True)
+    small = theta < 1e-6
+    th = np.where(small, 1.0, theta)
+    coef = np.where(small, 1.0 / 12.0 + theta**2 / 720.0,
+                    1.0 / th**2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th)))
+    rxw = np.cross(r, w)
+    return w + 0.5 * rxw + coef * np.cross(r, rxw)
+
+
+def so3_hermite(t_src: np.ndarray, quats: np.ndarray, omegas: np.ndarray,
+                times: np.ndarray) -> np.ndarray:
+    """Cubic Hermite of (T, N, 4) orientations with world angular velocities (T, N, 3)."""
+    from crosscheck.rotations import quat_conj, quat_mul, quat_rotate, rotvec_to_quat
+
+    idx, s, valid = _bracket(t_src, times)
+    q = np.asarray(quats, float)
+    w = np.asarray(omegas, float)
+    if len(t_src) < 2:
+        out = np.repeat(q[:1], len(times), axis=0)
+        out[~valid] = np.nan
+        return out
+    h = (np.asarray(t_src)[idx + 1] - np.asarray(t_src)[idx])[:, None, None]
+    q0, q1 = q[idx], q[idx + 1].copy()
+    q1[np.sum(q0 * q1, axis=-1) < 0] *= -1.0
+    r1 = _quat_log(quat_mul(quat_conj(q0), q1))
+    m0 = h * quat_rotate(quat_conj(q0), w[idx])
+    m1 = h * _jr_inv(r1, quat_rotate(quat_conj(q1), w[idx + 1]))
+    s_ = s[:, None, None]
+    r = ((-2 * s_**3 + 3 * s_**2) * r1 + (s_**3 - 2 * s_**2 + s_) * m0
+         + (s_**3 - s_**2) * m1)
+    out = quat_mul(q0, rotvec_to_quat(r))
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    out[~valid] = np.nan
+    return out
+
+
 def same_times(a: np.ndarray, b: np.ndarray, rtol: float = 1e-9) -> bool:
     a = np.asarray(a, float)
     b = np.asarray(b, float)
@@ -130,7 +185,10 @@ def resample(ref: Trajectory, times: np.ndarray) -> Trajectory:
     omega = linear(t, ref.omega, times)
     quat = angle = None
     if ref.quat is not None:
-        quat = slerp(t, ref.quat, times)
+        if np.all(np.isfinite(ref.omega)):
+            quat = so3_hermite(t, ref.quat, ref.omega, times)
+        else:
+            quat = slerp(t, ref.quat, times)
     if ref.angle is not None:
         angle = hermite(t, ref.angle, ref.omega, times)
     return Trajectory(t=times.copy(), com=com, vel=vel, omega=omega, quat=quat, angle=angle,
