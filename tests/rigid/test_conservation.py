@@ -7,7 +7,6 @@ Energies and momenta come from crosscheck.quantities (the same ruler as every en
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +23,6 @@ def _run(scene, integrator, dt):
     traj = get_engine("inhouse").run(scene, integrator, dt)
     assert traj.failure is None, traj.failure
     return traj
-
-
-def _with_run(scene, **changes):
-    return replace(scene, run=replace(scene.run, **changes))
 
 
 # -- the tennis racket ----------------------------------------------------------------------
