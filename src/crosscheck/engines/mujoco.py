@@ -38,6 +38,7 @@ after the run, vectorised (so MuJoCo's derived arrays, stale after ``mj_step``, 
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -83,7 +84,7 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "eulerdamp": ((True, False), True),
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
-    "stepping": (("rollout", "nstep"), "rollout"),
+    "stepping": (("nstep", "rollout"), "nstep"),
 }
 
 # A run fails at the first sample at or after which MuJoCo's own check fired (mj_checkPos,
@@ -91,6 +92,18 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
 _UNSTABLE = "MuJoCo flagged an instability (NaN, Inf or |value| > 1e10 in qpos, qvel or qacc)"
 # Largest rollout chunk kept in memory at once (every step's state is written by rollout).
 ROLLOUT_CHUNK_BYTES = 4 << 20
+_SCRATCH = threading.local()
+
+
+def _scratch(shape: tuple[int, ...]) -> np.ndarray:
+    """A per-thread reusable array: a fresh one per run costs page faults comparable to
+    stepping a small model (rollout writes every step's state into it)."""
+    size = int(np.prod(shape))
+    buf = getattr(_SCRATCH, "buf", None)
+    if buf is None or buf.size < size:
+        buf = np.empty(size)
+        _SCRATCH.buf = buf
+    return buf[:size].reshape(shape)
 
 _SHAPES_3D = ("sphere", "box", "capsule", "cylinder", "mesh")
 _SHAPES_2D = ("circle", "box", "polygon")
@@ -437,9 +450,9 @@ class MujocoModel:
     def stepping_mode(self) -> str:
         if self.per_step_forces:
             return "python loop: per-step xfrc_applied drag, mj_step"
-        if self.options["stepping"] == "nstep":
-            return "mj_step(m, d, nstep=steps_per_sample) per sample"
-        return "mujoco.rollout in chunks, every steps_per_sample-th state kept"
+        if self.options["stepping"] == "rollout":
+            return "mujoco.rollout in chunks, every steps_per_sample-th state kept"
+        return "mj_step(m, d, nstep=steps_per_sample) per sample"
 
     def record(self, n_samples: int, k: int) -> tuple[np.ndarray, np.ndarray, float, float,
                                                       int, str | None]:
@@ -448,48 +461,69 @@ class MujocoModel:
         Returns (qpos (n, nq), qvel (n, nv), stepping seconds, recording seconds spent in the
         loop, number of valid samples, failure reason or None). Sample 0 is the current state.
         A sample is invalid from the first one at which MuJoCo's instability check (NaN, Inf
-        or |value| > 1e10 in qpos, qvel or qacc) has fired or the state is not finite.
+        or |value| > 1e10 in qpos, qvel or qacc) has fired during a step leading to it, or
+        the state is not finite.
         """
         if self.per_step_forces or self.options["stepping"] == "nstep":
             return self._record_loop(n_samples, k)
-        return self._record_rollout(n_samples, k)
+        return self._record_rollout(n_samples, k)  # stepping = "rollout"
 
     def _record_loop(self, n, k):
         m, d = self.model, self.data
-        qpos = np.empty((n, m.nq))
-        qvel = np.empty((n, m.nv))
-        qpos[0], qvel[0] = d.qpos, d.qvel
-        # Row views made before the loop: a copy per sample is then one C call per array.
-        rows_q, rows_v, copy = list(qpos), list(qvel), np.copyto
-        qp, qv = d.qpos, d.qvel
-        clock = time.perf_counter
-        stepping = 0.0
-        done = 1
-        start = clock()
-        advance = self.advance if self.per_step_forces else (
-            lambda nsteps, _step=mujoco.mj_step: _step(m, d, nsteps))
-        # MuJoCo's instability counters (the flags the rollout stops at), read once a sample.
+        spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        nstate = mujoco.mj_stateSize(m, spec)
+        # Each sample is the full physics state [time, qpos, qvel, ...]: one C call to copy, and
+        # a checkpoint the run can be replayed from.
+        states = np.empty((n, nstate))
+        rows, get = list(states), mujoco.mj_getState
+        get(m, d, rows[0], spec)
         warning = d.warning
         flags = [int(getattr(mujoco.mjtWarning, w)) for w in
                  ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS")]
-        flagged = None
+
+        def flagged() -> bool:
+            return any(warning[f].number for f in flags)
+
+        step = mujoco.mj_step
+        advance = self.advance if self.per_step_forces else (lambda steps: step(m, d, steps))
+        clock = time.perf_counter
+        stepping = 0.0
+        done = 1
+        checked = 0  # last sample known to precede any instability flag
+        start = clock()
         for i in range(1, n):
             t0 = clock()
             advance(k)
             stepping += clock() - t0
-            copy(rows_q[i], qp)
-            copy(rows_v[i], qv)
+            get(m, d, rows[i], spec)
             done = i + 1
-            if warning[flags[0]].number or warning[flags[1]].number \
-                    or warning[flags[2]].number:
-                flagged = i
-                break
+            # MuJoCo's instability counters cost ~1 us to read: every 64 samples, then the
+            # exact sample is found by replaying from the last clean one.
+            if not i & 63:
+                if flagged():
+                    break
+                checked = i
+        else:
+            i = None
+        if i is not None or flagged():
+            # Replay from the last clean sample, one sample at a time (deterministic: the
+            # full physics state plus the applied forces determine every step).
+            mujoco.mj_resetData(m, d)
+            d.xfrc_applied[:] = self._loads
+            mujoco.mj_setState(m, d, states[checked], spec)
+            first = checked + 1
+            while first < done:
+                advance(k)
+                if flagged():
+                    break
+                first += 1
+            in_loop = clock() - start - stepping
+            return (states[:, 1:1 + m.nq], states[:, 1 + m.nq:1 + m.nq + m.nv], stepping,
+                    in_loop, first, _UNSTABLE)
         in_loop = clock() - start - stepping
-        if flagged is not None:
-            return qpos, qvel, stepping, in_loop, flagged, _UNSTABLE
-        bad = ~(np.all(np.isfinite(qpos[:done]), axis=1) & np.all(np.isfinite(qvel[:done]),
-                                                                  axis=1))
-        if bad.any():
+        qpos, qvel = states[:done, 1:1 + m.nq], states[:done, 1 + m.nq:1 + m.nq + m.nv]
+        bad = ~(np.all(np.isfinite(qpos), axis=1) & np.all(np.isfinite(qvel), axis=1))
+        if bad.any():  # pragma: no cover - MuJoCo flags NaN itself; kept as a guard
             return qpos, qvel, stepping, in_loop, int(np.argmax(bad)), "non-finite state"
         return qpos, qvel, stepping, in_loop, done, None
 
@@ -504,62 +538,67 @@ class MujocoModel:
         qpos = np.empty((n, m.nq))
         qvel = np.empty((n, m.nv))
         qpos[0], qvel[0] = init[0, qs], init[0, vs]
-        # rollout is stateless: applied forces must be passed as controls (constant here).
+        per_chunk = max(1, ROLLOUT_CHUNK_BYTES // (8 * nstate * k)) * k
+        width = min(per_chunk, max((n - 1) * k, 1))
+        out_all = _scratch((1, width, nstate))
+        sens_all = np.empty((1, width, 0))
+        # rollout is stateless: applied forces are passed as controls, here constant rows of
+        # xfrc_applied. Shapes are exact, so the wrapper's checks are skipped.
         if np.any(self._loads):
             control_spec = int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
-            control = self._loads.reshape(1, 1, -1).copy()
+            control_all = np.ascontiguousarray(
+                np.broadcast_to(self._loads.reshape(1, 1, -1), (1, width, self._loads.size)))
         else:
-            control_spec, control = int(mujoco.mjtState.mjSTATE_CTRL), None
-        per_chunk = max(1, ROLLOUT_CHUNK_BYTES // (8 * nstate * k)) * k
-        total = (n - 1) * k
-        buf = np.empty((1, min(per_chunk, max(total, 1)), nstate))
+            control_spec, control_all = int(mujoco.mjtState.mjSTATE_CTRL), None
         roller = _rollout.Rollout(nthread=0)
+        run_chunk = roller.rollout_.rollout
+        models, datas = [m], [d]
         clock = time.perf_counter
         stepping = 0.0
         start = clock()
         filled = 1
         failure = None
-        t_last = init[0, 0]
         try:
             while filled < n:
                 steps = min(per_chunk, (n - filled) * k)
-                out = buf[:, :steps]
+                out = out_all[:, :steps]
+                control = None if control_all is None else control_all[:, :steps]
                 t0 = clock()
-                roller.rollout(m, d, init, control, control_spec=control_spec, nstep=steps,
-                               state=out)
+                run_chunk(models, datas, steps, control_spec, init, None, control, out,
+                          sens_all[:, :steps], None)
                 stepping += clock() - t0
+                # A diverged rollout stops stepping and repeats its last state to the end of the
+                # chunk: time stalls. Row j holds the state after step j + 1.
                 times = out[0, :, 0]
-                # A diverged rollout stops stepping and repeats its last state: time stalls.
-                stalled = np.nonzero(np.diff(times, prepend=t_last) <= 0)[0]
-                if stalled.size:
-                    # Row j holds step j + 1; the last state stepped (row stalled - 1) is the
-                    # one MuJoCo flagged: keep only samples before it.
-                    first = int(stalled[0])
+                if times[-1] <= (times[-2] if steps > 1 else init[0, 0]):
+                    first = int(np.argmax(np.diff(times, prepend=init[0, 0]) <= 0))
+                    # Step `first` (1-based) raised MuJoCo's flag and produced row first - 1,
+                    # the last state stepped; samples from that step on are invalid.
                     if first == 0:
-                        filled -= 1  # the previous chunk's last sample was the flagged state
+                        filled -= 1  # the previous chunk's last step was the flagged one
                     got = max(0, (first - 1) // k)
+                    failure = _UNSTABLE
                 else:
                     got = steps // k
                 rows = out[0, k - 1:got * k:k]
                 qpos[filled:filled + got] = rows[:, qs]
                 qvel[filled:filled + got] = rows[:, vs]
                 filled += got
-                if stalled.size:
-                    failure = _UNSTABLE
+                if failure is not None:
                     break
                 init[0] = out[0, -1]
-                t_last = init[0, 0]
         finally:
             roller.close()
         in_loop = clock() - start - stepping
-        good = np.all(np.isfinite(qpos[:filled]), axis=1) & np.all(np.isfinite(qvel[:filled]),
-                                                                      axis=1)
-        if not good.all():
-            return qpos, qvel, stepping, in_loop, int(np.argmin(good)), "non-finite state"
-        if failure is None:
-            # Leave data at the final state, as the step loop does.
-            mujoco.mj_setState(m, d, init[0], spec)
-        return qpos, qvel, stepping, in_loop, filled, failure
+        if failure is None and not np.all(np.isfinite(init)):  # pragma: no cover - MuJoCo
+            failure = "non-finite state"  # flags NaN itself; kept as a guard
+        if failure is not None:
+            good = np.all(np.isfinite(qpos[:filled]), axis=1) & np.all(
+                np.isfinite(qvel[:filled]), axis=1)
+            return qpos, qvel, stepping, in_loop, int(np.argmin(np.append(good, False))), \
+                failure
+        mujoco.mj_setState(m, d, init[0], spec)  # leave data at the final state
+        return qpos, qvel, stepping, in_loop, filled, None
 
     # -- read back ------------------------------------------------------------------------
     def effective(self) -> dict[str, Any]:
