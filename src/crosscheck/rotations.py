@@ -117,6 +117,8 @@ def sign_continuous(q: np.ndarray) -> np.ndarray:
     # is negative: so its sign is the parity of the negative raw dots since the last zero (or NaN)
     # dot, where the sequential rule restarts at +1.
     dots = np.sum(q[1:] * q[:-1], axis=-1)
+    if np.all(dots > 0):  # the usual case: nothing to flip
+        return q
     neg = np.concatenate([np.zeros_like(dots[:1], dtype=int), (dots < 0).astype(int)])
     restart = np.concatenate([np.ones_like(dots[:1], dtype=bool), ~((dots < 0) | (dots > 0))])
     count = np.cumsum(neg, axis=0)
