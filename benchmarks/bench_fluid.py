@@ -128,7 +128,13 @@ def markdown(doc: dict) -> str:
             + f" | {r['steps']} | {r['pressure_iterations_mean']:.1f} | "
             f"{r['cell_updates_per_s'] / 1e6:.2f} |")
     lines += ["", "Phases in ms per step; 'forces' is gravity (and viscosity when the case has "
-              "it), 'projection' is matrix assembly, MIC(0)-PCG and the velocity update.", ""]
+              "it), 'projection' is matrix assembly, MIC(0)-PCG and the velocity update. "
+              "Cell-updates per second divide the whole n x n grid by the step time; the water "
+              "fills 1/8 of the tank and advection, redistancing and extension only work in and "
+              "near it, so the rate flatters a solver that skips air. Two threads lose on a "
+              "shared machine: numba's parallel loops wait at barriers for cores other runs hold "
+              "(about 10 ms per step of advection whatever the grid), hence one thread by "
+              "default (CROSSCHECK_FLUID_THREADS).", ""]
     return "\n".join(lines)
 
 
