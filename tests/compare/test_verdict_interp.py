@@ -99,3 +99,19 @@ def test_resample_returns_the_samples_at_sample_times():
     assert sub is traj or np.allclose(sub.com, traj.com[::2])
     mid = resample(traj, np.array([0.3]))
     assert np.allclose(mid.com[0], traj.com[3])
+
+
+def test_expected_blowup_is_judged_by_its_time_alone():
+    scene = load_case_text(CASE.replace("position_error_max = 1e-3",
+                                        "position_error_max = 1e-3\n"
+                                        "blowup_time = { euler = 0.5 }"))
+    m = {"position_error_max": {"value": 37.0}, "blowup_time": {"value": 0.1}}
+    v = judge(scene, "x", "euler", m, blowup_time=0.1, blowup_reason="non-finite state")
+    assert v.status == "pass" and "as the case expects" in v.reason
+    assert v.metrics["position_error_max"]["passed"] is None  # not judged after a blow-up
+    v = judge(scene, "x", "euler", dict(m, blowup_time={"value": 0.7}), blowup_time=0.7)
+    assert v.status == "fail" and "later than the case expects" in v.reason
+    v = judge(scene, "x", "euler", {"position_error_max": {"value": 0.0}})
+    assert v.status == "fail" and "stayed bounded" in v.reason
+    # Integrators without a blowup_time limit keep the ordinary rules: a blow-up is a blow-up.
+    assert judge(scene, "x", "rk4", m, blowup_time=0.1).status == "blowup"

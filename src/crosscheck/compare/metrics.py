@@ -137,7 +137,7 @@ def energy_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None, out: 
     e = energy
     if scale <= 0:
         out.add("energy_drift", None, meaningful=False,
-                note="no energy scale: nothing moves and there is no gravity")
+                note="no energy scale: " + _still(out) + " and there is no gravity")
         return 0.0
     drift = np.abs(e - e[0]) / scale
     note = f"scale S_E = {scale:.6g} J (max kinetic energy, {source})"
@@ -157,7 +157,7 @@ def linear_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
     p = linear_momentum(scene, traj)
     dp = p - p[0]
     if scale <= 0:
-        out.add("linear_momentum_drift", None, meaningful=False, note="nothing moves")
+        out.add("linear_momentum_drift", None, meaningful=False, note=_still(out))
         return
     if basis is None:
         drift = np.linalg.norm(dp, axis=-1) / scale
@@ -180,7 +180,7 @@ def angular_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
     reason = scales.angular_momentum_not_conserved(scene)
     scale = scales.angular_momentum_scale(scene, scale_basis)
     if scale <= 0:
-        out.add("angular_momentum_drift", None, meaningful=False, note="nothing moves")
+        out.add("angular_momentum_drift", None, meaningful=False, note=_still(out))
         return
     ang = angular_momentum(scene, traj, about="com")
     dl = ang - ang[0]
@@ -190,6 +190,10 @@ def angular_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
         note = f"not conserved: {reason}; " + note
     out.add("angular_momentum_drift", float(np.max(drift)), meaningful=reason is None, note=note)
     out.add_series("angular_momentum_drift", traj.t, drift)
+
+
+def _still(out: MetricSet) -> str:
+    return "nothing moves" if out.blowup_time is None else "nothing moves before the blow-up"
 
 
 # -- against the reference -------------------------------------------------------------------------

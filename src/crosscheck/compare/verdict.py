@@ -4,7 +4,10 @@ A metric with a limit for this engine and integrator (``Tolerance.limit(engine, 
 ``engine.integrator`` beats ``integrator`` beats ``engine`` beats ``default``) passes when
 ``value <= limit``; a NaN value fails. The cell's status is, in this order:
 
-* ``blowup`` when the run blew up (non-finite state, or runaway energy; see metrics.blowup),
+* ``blowup`` when the run blew up (non-finite state, or runaway energy; see metrics.blowup)
+  -- unless the case *expects* it: a ``blowup_time`` limit for this engine and integrator means
+  "must blow up no later than this" (a stability case), and then the blow-up time alone decides
+  pass or fail (a run that stays bounded fails),
 * ``error`` when a tolerance names a metric this cell could not compute (a misspelt metric, a
   reference that failed or defines no such quantity) -- a case or harness problem, not physics,
 * ``fail`` when any limited metric exceeds its limit,
@@ -55,10 +58,21 @@ def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[st
     ``missing_reason`` explains why reference metrics may be absent (e.g. the reference failed).
     """
     out = {name: dict(m) for name, m in metrics.items()}
+    expect_blowup = None
+    if "blowup_time" in scene.tolerances:
+        expect_blowup = scene.tolerances["blowup_time"].limit(engine, integrator)
+    if expect_blowup is not None:
+        for name, tol in scene.tolerances.items():
+            other_limit = tol.limit(engine, integrator)
+            if name != "blowup_time" and other_limit is not None and name in out:
+                out[name].update(limit=other_limit, passed=None,
+                                 note=("not judged: the case expects a blow-up; "
+                                       + out[name].get("note", "")).rstrip("; "))
+        return _judge_expected_blowup(out, expect_blowup, blowup_time, blowup_reason)
     failed, missing = [], []
     for name, tol in scene.tolerances.items():
         limit = tol.limit(engine, integrator)
-        if limit is None:
+        if limit is None or name == "blowup_time":
             continue
         entry = out.get(name)
         if entry is None or (entry.get("value") is None and "value_text" not in entry):
@@ -103,6 +117,31 @@ def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[st
     else:
         status, reason = "pass", ""
     return Verdict(status=status, reason=reason.strip(), metrics=out, worst=worst)
+
+
+def _judge_expected_blowup(out, limit, blowup_time, blowup_reason) -> Verdict:
+    """A ``blowup_time`` limit says this run *must* blow up no later than ``limit`` seconds
+    (a stability case: an explicit scheme past its step limit). Then the blow-up is the verdict
+    and no other limit is judged (they would only measure how far the run ran away)."""
+    entry = out.setdefault("blowup_time", {"value": blowup_time, "unit": "s"})
+    entry["limit"] = limit
+    if blowup_time is None:
+        entry.update(value=None, passed=False,
+                     note=f"the case expects a blow-up by t = {limit:g} s; the run stayed "
+                          "bounded")
+        return Verdict("fail", f"expected a blow-up by t = {limit:g} s (blowup_time limit), "
+                       "the run stayed bounded", out,
+                       {"metric": "blowup_time", "value": None, "limit": limit,
+                        "ratio": math.inf})
+    ok = blowup_time <= limit
+    entry["passed"] = ok
+    worst = {"metric": "blowup_time", "value": blowup_time, "limit": limit,
+             "ratio": ratio(blowup_time, limit)}
+    if ok:
+        return Verdict("pass", f"blew up at t = {blowup_time:.6g} s as the case expects "
+                       f"(<= {limit:g} s): {blowup_reason or ''}".strip(), out, worst)
+    return Verdict("fail", f"blowup_time = {blowup_time:.6g} > {limit:g}: blew up later than "
+                   "the case expects", out, worst)
 
 
 def _numeric(entry: dict[str, Any]) -> float | None:
