@@ -191,7 +191,8 @@ def test_adapter_step_is_a_cap_unless_fixed(fluid_case):
 
 
 def test_integrator_registry(fluid_case):
-    assert set(INTEGRATORS) == {"semi_lagrangian", "maccormack", "particle_levelset"}
+    assert set(INTEGRATORS) == {"semi_lagrangian", "maccormack", "particle_levelset",
+                                "particle_levelset_maccormack"}
     with pytest.raises(ValueError):
         run_fluid(fluid_case("tank_at_rest"), "rk4")
 

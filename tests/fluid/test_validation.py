@@ -82,7 +82,8 @@ def test_sloshing_period(runs):
 
 def test_zalesak_particles_beat_plain_level_set(runs):
     out = {}
-    for integ in ("semi_lagrangian", "maccormack", "particle_levelset"):
+    for integ in ("semi_lagrangian", "maccormack", "particle_levelset",
+                  "particle_levelset_maccormack"):
         scene, rec = runs("zalesak_disk", integ)
         assert rec.failure is None
         assert abs(rec.t[-1] - 2 * math.pi) < 1e-9
@@ -92,6 +93,7 @@ def test_zalesak_particles_beat_plain_level_set(runs):
     assert out["particle_levelset"]["area_change"] < 0.05
     assert out["particle_levelset"]["shape_error"] < out["maccormack"]["shape_error"]
     assert out["particle_levelset"]["area_change"] < out["semi_lagrangian"]["area_change"] / 5
+    assert out["particle_levelset_maccormack"]["shape_error"] < out["maccormack"]["shape_error"]
 
 
 def test_dam_break_over_an_obstacle(runs):

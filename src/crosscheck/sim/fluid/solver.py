@@ -54,6 +54,8 @@ INTEGRATORS: dict[str, Scheme] = {
                "semi-Lagrangian + MacCormack correction with extrema limiter (Selle et al. 2008)"),
         Scheme("particle_levelset", "linear", True,
                "semi-Lagrangian with the particle level set correction (Enright et al. 2002)"),
+        Scheme("particle_levelset_maccormack", "maccormack", True,
+               "MacCormack advection with the particle level set correction"),
     )
 }
 DEFAULT_INTEGRATOR = "semi_lagrangian"
