@@ -6,7 +6,7 @@ One step (Bridson's splitting; every piece follows the Treuille seed):
 2. semi-Lagrangian advection of the level set and of both velocity components with the
    velocity of the start of the step, second-order (midpoint) backtrace, path clipping at walls
    and obstacles; MacCormack correction on top for the ``maccormack`` integrator;
-3. particle level set correction (``particle_levelset``), redistancing by fast marching;
+3. particle level set correction (``particle_levelset``), redistancing (fast sweeping);
 4. body forces (gravity) and explicit viscosity sub-steps;
 5. pressure projection with solid walls and the ghost-fluid free surface (``pressure.py``);
 6. extension of the new fluid velocity into an air band wide enough for the next step's trace.
