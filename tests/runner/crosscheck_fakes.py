@@ -10,6 +10,8 @@ sys.path travels with the task). Their physics is simple enough to know every me
 * integrator ``euler``: explicit Euler for the translation (x += v dt, then v += g dt), which
   lags the exact drop by g t dt / 2 and gains energy m g^2 t dt / 2.
 * integrator ``fast_spin``: exact translation, spin 1 % too fast: orientation error 0.01 |w| t.
+* integrator ``unstable``: explicit Euler that is stable for dt <= 0.01 and otherwise multiplies
+  the velocity by 10 every step (a stability limit at 0.01 s).
 * ``CrashEngine`` kills its own process with SIGSEGV, ``HangEngine`` sleeps forever,
   ``RaiseEngine`` raises, ``BlowupEngine`` grows the velocity 10x per step until it is not finite.
 """
@@ -34,7 +36,7 @@ class ExactEngine(EngineBase):
         return Capabilities(dimensions=frozenset({2, 3}),
                             shapes=frozenset({"sphere", "box", "circle"}),
                             effects=frozenset({"gravity", "drag"}),
-                            integrators=("exact", "euler", "fast_spin"))
+                            integrators=("exact", "euler", "fast_spin", "unstable"))
 
     def version(self) -> str:
         return "fake-1.0"
@@ -53,12 +55,17 @@ class ExactEngine(EngineBase):
         x, v = x0.copy(), v0.copy()
         for i in range(plan.n_samples):
             t = plan.time(i)
-            if integrator == "euler":
+            if integrator in ("euler", "unstable"):
                 if i > 0:
                     for _ in range(plan.steps_per_sample):
                         x = x + v * dt
                         v = v + g * dt
+                        if integrator == "unstable" and dt > 0.01:
+                            v = v * 10.0
                 xs, vs = x, v
+                if not np.all(np.isfinite(xs)) or not np.all(np.isfinite(vs)):
+                    rec.fail(t, "non-finite state")
+                    break
             else:
                 xs, vs = x0 + v0 * t + 0.5 * g * t * t, v0 + g * t
             if d == 3:

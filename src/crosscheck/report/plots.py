@@ -12,6 +12,7 @@ bin, so peaks survive). Values of exactly zero are drawn at 1e-17 on the log axe
 from __future__ import annotations
 
 import io
+import warnings
 from typing import Any
 
 ENGINE_COLORS = {"inhouse": "#1f77b4", "mujoco": "#d62728", "pybullet": "#2ca02c",
@@ -102,7 +103,9 @@ def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(case, fontsize=10)
-    fig.tight_layout()
+    with warnings.catch_warnings():  # tight_layout may give up on crowded legends: cosmetic
+        warnings.simplefilter("ignore")
+        fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=80)
     plt.close(fig)
