@@ -50,6 +50,8 @@ DEFAULT_SLACK: dict[str, dict[str, float]] = {
     "velocity_error_max": {"abs": 1e-9, "rel": 0.1},
     "angular_velocity_error_max": {"abs": 1e-9, "rel": 0.1},
     "out_of_plane_drift": {"abs": 1e-9, "rel": 0.1},
+    "out_of_plane_tilt": {"abs": 1e-9, "rel": 0.1},
+    "out_of_plane_angular_velocity": {"abs": 1e-9, "rel": 0.1},
     "blowup_time": {"abs": 0.05, "rel": 0.0},
 }
 HIGHER_IS_BETTER = frozenset({"blowup_time"})

@@ -234,3 +234,17 @@ def test_nan_reference_entries_are_skipped():
     assert ms.metrics["position_error_max"].value == pytest.approx(G * 0.01 / 2, rel=1e-10)
     # Without a full reference state the energy scale falls back to the run itself.
     assert "run" in ms.metrics["energy_drift"].note
+
+
+def test_out_of_plane_records_become_metrics_in_their_own_units():
+    scene = load_case_text(fall_case())
+    traj = run(scene, "exact")
+    n = len(traj.t)
+    traj.extras = {"out_of_plane": np.linspace(0.0, -2e-3, n)[:, None],
+                   "out_of_plane_tilt": np.full((n, 1), 0.01),
+                   "out_of_plane_omega": np.zeros((n, 1))}
+    ms = compute_metrics(scene, traj)
+    assert ms.metrics["out_of_plane_drift"].value == pytest.approx(2e-3)
+    assert ms.metrics["out_of_plane_drift"].unit == "m"
+    assert ms.metrics["out_of_plane_tilt"].value == pytest.approx(0.01)
+    assert ms.metrics["out_of_plane_angular_velocity"].value == 0.0

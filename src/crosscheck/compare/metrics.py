@@ -33,8 +33,10 @@ Against the reference (the reference resampled at the run's times, :mod:`.interp
     reference never defines gives no metric.
 
 Other
-    ``out_of_plane_drift = max_t max_i |z_i(t)|`` over the out-of-plane coordinate an adapter that
-    runs a 2D scene in 3D records in ``traj.extras`` (any key containing ``out_of_plane``) (m).
+    ``out_of_plane_drift = max_t max_i |z_i(t)|`` (m), the out-of-plane centre-of-mass coordinate
+    an adapter that runs a 2D scene in 3D records as ``traj.extras["out_of_plane"]``; likewise
+    ``out_of_plane_tilt`` (rad, the body z axis against the world z axis) and
+    ``out_of_plane_angular_velocity`` (rad/s, ``|(w_x, w_y)|``) when it records them.
     ``blowup_time``: the first sample time with a non-finite state (the adapter stopped there) or
     with ``|E(t) - E(0)| > 10 E_avail`` (scales.BLOWUP_FACTOR and scales.available_energy);
     absent when the run did not blow up.
@@ -58,7 +60,8 @@ from crosscheck.state import Trajectory
 UNITS = {
     "position_error_max": "m", "position_error_rms": "m", "velocity_error_max": "m/s",
     "orientation_error_max": "rad", "angular_velocity_error_max": "rad/s",
-    "out_of_plane_drift": "m", "blowup_time": "s",
+    "out_of_plane_drift": "m", "out_of_plane_tilt": "rad",
+    "out_of_plane_angular_velocity": "rad/s", "blowup_time": "s",
 }
 # Points kept per time series for plots: enough for a smooth curve, bounded memory per cell.
 SERIES_POINTS = 400
@@ -255,13 +258,21 @@ def _row_max(values: np.ndarray) -> np.ndarray:
 
 
 # -- other -----------------------------------------------------------------------------------------
+OUT_OF_PLANE = (  # extras key -> metric name (an adapter running a 2D scene in 3D fills them)
+    ("out_of_plane", "out_of_plane_drift"),
+    ("out_of_plane_tilt", "out_of_plane_tilt"),
+    ("out_of_plane_omega", "out_of_plane_angular_velocity"),
+)
+
+
 def out_of_plane_metric(traj: Trajectory, out: MetricSet):
-    keys = [k for k in traj.extras if "out_of_plane" in k]
-    if not keys:
-        return
-    values = [np.abs(np.asarray(traj.extras[k], float)) for k in keys]
-    worst = max((_masked_max(v.reshape(len(v), -1)) or 0.0) for v in values)
-    out.add("out_of_plane_drift", worst, note=f"from {', '.join(keys)}")
+    """``max_t max_i |extras[key]|`` for each out-of-plane record the adapter kept."""
+    for key, name in OUT_OF_PLANE:
+        if key in traj.extras:
+            values = np.abs(np.asarray(traj.extras[key], float))
+            worst = _masked_max(values.reshape(len(values), -1)) if values.size else None
+            if worst is not None:
+                out.add(name, worst, note=f"from the adapter's extras[{key!r}]")
 
 
 def blowup(scene: Scene, traj: Trajectory, energy: np.ndarray | None, out: MetricSet):
