@@ -800,61 +800,107 @@ def assemble_3d(bodies, gravity, springs, drag, loads, x, q, P, L, h,
     return nnz
 
 
+@njit(**INLINE)
+def _solve3(A, b0, b1, b2):
+    """A^-1 b for a 3 x 3 A by the adjugate."""
+    c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+    x0 = (c00 * b0 + (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) * b1
+          + (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) * b2) / det
+    x1 = (c01 * b0 + (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) * b1
+          + (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) * b2) / det
+    x2 = (c02 * b0 + (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) * b1
+          + (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * b2) / det
+    return x0, x1, x2
+
+
 @njit(**JIT)
-def backward_rotation(bodies, q, L, i, h):
+def backward_rotation(bodies, q, L, i, h, ws):
     """q[i] <- exp(phi) q[i] with phi = h w(exp(phi) q[i], L[i]): backward Euler for the
     orientation (the angular velocity of the *end* of the step). Newton on
-    G(phi) = phi - h w(phi), with dw = (-[w]x + I_w^-1 [L]x) dpsi for a small world rotation dpsi
+    G(phi) = phi - h w(phi), with dw = (I_w^-1 [L]x - [w]x) dpsi for a small world rotation dpsi
     of the body and dpsi = dexp(phi) dphi, dexp(phi) = 1 + [phi]x / 2 + [phi]x^2 / 6. Converges
-    quadratically from phi = h w(q_n, L); the iteration count is bounded for safety."""
-    ibinv = bodies.inv_inertia[i]
-    R = np.empty((1, 3, 3))
-    qt = np.empty((1, 4))
-    q0 = np.empty((1, 4))
-    for c in range(4):
-        q0[0, c] = q[i, c]
-    lw = np.array([L[i, 0], L[i, 1], L[i, 2]])
-    phi = np.zeros(3)
-    Lx = np.zeros((3, 3))
-    _skew(lw[0], lw[1], lw[2], Lx, 0, 0)
+    quadratically from phi = 0; the iteration count is bounded for safety. ``ws`` is scratch
+    space (5, 3, 3)."""
+    R, M, S, D, J = ws[0], ws[1], ws[2], ws[3], ws[4]
+    ibinv = bodies.inv_inertia
+    q0w, q0x, q0y, q0z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    lx, ly, lz = L[i, 0], L[i, 1], L[i, 2]
+    p0 = p1 = p2 = 0.0
     for _ in range(30):
-        rotate_left_row(q0, phi, qt)
-        rotation_from_quat(qt, 0, R)
-        Rm = R[0]
-        iw_inv = Rm @ ibinv @ Rm.T
-        w = iw_inv @ lw
-        G = phi - h * w
-        Wx = np.zeros((3, 3))
-        Px = np.zeros((3, 3))
-        _skew(w[0], w[1], w[2], Wx, 0, 0)
-        _skew(phi[0], phi[1], phi[2], Px, 0, 0)
-        dexp = np.eye(3) + 0.5 * Px + (Px @ Px) / 6.0
-        J = np.eye(3) - h * ((iw_inv @ Lx - Wx) @ dexp)
-        step = np.linalg.solve(J, G)
-        phi = phi - step
-        size = np.sqrt(step[0] ** 2 + step[1] ** 2 + step[2] ** 2)
-        if not size > 1e-15 * (1e-300 + np.sqrt(phi[0] ** 2 + phi[1] ** 2 + phi[2] ** 2)):
+        ew, ex, ey, ez = quat_exp(p0, p1, p2)
+        tw, tx, ty, tz = quat_mul(ew, ex, ey, ez, q0w, q0x, q0y, q0z)
+        sc = 2.0 / (tw * tw + tx * tx + ty * ty + tz * tz)
+        R[0, 0] = 1.0 - sc * (ty * ty + tz * tz)
+        R[0, 1] = sc * (tx * ty - tw * tz)
+        R[0, 2] = sc * (tx * tz + tw * ty)
+        R[1, 0] = sc * (tx * ty + tw * tz)
+        R[1, 1] = 1.0 - sc * (tx * tx + tz * tz)
+        R[1, 2] = sc * (ty * tz - tw * tx)
+        R[2, 0] = sc * (tx * tz - tw * ty)
+        R[2, 1] = sc * (ty * tz + tw * tx)
+        R[2, 2] = 1.0 - sc * (tx * tx + ty * ty)
+        # M = I_w^-1 = R I_body^-1 R^T (S as scratch for R I_body^-1)
+        for r in range(3):
+            for c in range(3):
+                S[r, c] = (R[r, 0] * ibinv[i, 0, c] + R[r, 1] * ibinv[i, 1, c]
+                           + R[r, 2] * ibinv[i, 2, c])
+        for r in range(3):
+            for c in range(3):
+                M[r, c] = S[r, 0] * R[c, 0] + S[r, 1] * R[c, 1] + S[r, 2] * R[c, 2]
+        wx = M[0, 0] * lx + M[0, 1] * ly + M[0, 2] * lz
+        wy = M[1, 0] * lx + M[1, 1] * ly + M[1, 2] * lz
+        wz = M[2, 0] * lx + M[2, 1] * ly + M[2, 2] * lz
+        # S = M [L]x - [w]x
+        for r in range(3):
+            S[r, 0] = M[r, 1] * lz - M[r, 2] * ly
+            S[r, 1] = M[r, 2] * lx - M[r, 0] * lz
+            S[r, 2] = M[r, 0] * ly - M[r, 1] * lx
+        S[0, 1] += wz
+        S[0, 2] -= wy
+        S[1, 0] -= wz
+        S[1, 2] += wx
+        S[2, 0] += wy
+        S[2, 1] -= wx
+        # D = dexp(phi) = 1 + [phi]x / 2 + [phi]x^2 / 6, [p]x^2 = p p^T - |p|^2 1
+        pp = p0 * p0 + p1 * p1 + p2 * p2
+        D[0, 0] = 1.0 + (p0 * p0 - pp) / 6.0
+        D[1, 1] = 1.0 + (p1 * p1 - pp) / 6.0
+        D[2, 2] = 1.0 + (p2 * p2 - pp) / 6.0
+        D[0, 1] = -0.5 * p2 + p0 * p1 / 6.0
+        D[1, 0] = 0.5 * p2 + p0 * p1 / 6.0
+        D[0, 2] = 0.5 * p1 + p0 * p2 / 6.0
+        D[2, 0] = -0.5 * p1 + p0 * p2 / 6.0
+        D[1, 2] = -0.5 * p0 + p1 * p2 / 6.0
+        D[2, 1] = 0.5 * p0 + p1 * p2 / 6.0
+        # J = 1 - h S D
+        for r in range(3):
+            for c in range(3):
+                J[r, c] = ((1.0 if r == c else 0.0)
+                           - h * (S[r, 0] * D[0, c] + S[r, 1] * D[1, c] + S[r, 2] * D[2, c]))
+        d0, d1, d2 = _solve3(J, p0 - h * wx, p1 - h * wy, p2 - h * wz)
+        p0 -= d0
+        p1 -= d1
+        p2 -= d2
+        size = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if not size > 1e-15 * (1e-300 + np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)):
             break
-    rotate_left_row(q0, phi, qt)
-    for c in range(4):
-        q[i, c] = qt[0, c]
-
-
-@njit(**JIT)
-def rotate_left_row(q0, phi, out):
-    rotate_left(q0, 0, phi[0], phi[1], phi[2], out)
+    rotate_left(q, i, p0, p1, p2, q)
 
 
 @njit(**JIT)
 def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
     """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L."""
+    ws = np.empty((5, 3, 3))
     for i in range(x.shape[0]):
         for c in range(3):
             P[i, c] += bodies.mass[i] * du[6 * i + c]
             L[i, c] += (Iw[i, c, 0] * du[6 * i + 3] + Iw[i, c, 1] * du[6 * i + 4]
                         + Iw[i, c, 2] * du[6 * i + 5])
             x[i, c] += h * P[i, c] * bodies.inv_mass[i]
-        backward_rotation(bodies, q, L, i, h)
+        backward_rotation(bodies, q, L, i, h, ws)
     normalize_quats(q)
 
 
