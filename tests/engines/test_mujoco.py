@@ -391,7 +391,7 @@ def test_drag_on_centred_body_is_exact_joint_damping(errors):
     body = traj.meta["effective"]["bodies"][0]
     assert body["linear_drag"] == body["angular_drag"] == "joint damping"
     assert body["dof_damping"] == [0.8] * 3 + [0.02] * 3
-    assert traj.meta["effective"]["stepping"].startswith("mj_step")
+    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
     assert coarse < 1e-10
 
 
@@ -445,8 +445,8 @@ torque = [0.02, 0.0, -0.01]
                                    rtol=0, atol=1e-12)
     traj, err = errors(scene, "rk4", 1e-3)
     assert err < 1e-9  # constant loads are exact for RK4 up to the rotation coupling
-    # Constant loads need no per-step Python: xfrc_applied persists across mj_step calls.
-    assert traj.meta["effective"]["stepping"].startswith("mj_step")
+    # Constant loads need no per-step Python: constant xfrc_applied controls of the rollout.
+    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
 
 
 # -- 2D: planar joints through the centre of mass ------------------------------------------------
@@ -560,14 +560,14 @@ torque = [0.02, 0.0, -0.01]
 
 @pytest.mark.parametrize("effects", [SPRING, SPRING + LOAD], ids=["spring", "spring+load"])
 def test_rollout_nstep_and_single_steps_are_bit_identical(effects):
-    # The default recorder (mj_step(m, d, nstep=k) per sample), the rollout recorder (stateless
-    # mujoco.rollout in chunks, loads passed as xfrc_applied controls) and k single mj_step
-    # calls are the same arithmetic: bit-identical samples. Runs repeat bit for bit.
+    # The default recorder (stateless mujoco.rollout in chunks, loads passed as xfrc_applied
+    # controls), mj_step(m, d, nstep=k) per sample and k single mj_step calls are the same
+    # arithmetic: bit-identical samples. Runs repeat bit for bit.
     scene = scene3d(effects=effects)
-    rolled = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "rollout"')
-    a, b = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(rolled, "rk4", 1e-3)
-    assert a.meta["effective"]["stepping"].startswith("mj_step")
-    assert b.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    stepped = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "nstep"')
+    a, b = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(stepped, "rk4", 1e-3)
+    assert a.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    assert b.meta["effective"]["stepping"].startswith("mj_step")
     for name in ("com", "quat", "vel", "omega"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     again = ENGINE.run(scene, "rk4", 1e-3)
@@ -586,8 +586,7 @@ def test_rollout_chunks_join_exactly(monkeypatch):
     # Long rollouts are cut in chunks (memory bound); chunk boundaries must not show.
     import crosscheck.engines.mujoco as adapter
 
-    scene = scene3d(duration=0.5, effects=SPRING + LOAD,
-                    options='[engine_options.mujoco]\nstepping = "rollout"')
+    scene = scene3d(duration=0.5, effects=SPRING + LOAD)
     whole = ENGINE.run(scene, "euler", 1e-3)
     monkeypatch.setattr(adapter, "ROLLOUT_CHUNK_BYTES", 8 * 14 * 30)  # 3 samples per chunk
     chunked = ENGINE.run(scene, "euler", 1e-3)

@@ -30,10 +30,11 @@ What is mapped how (docs/engines.md has the full table):
 * **Loads** are constant ``xfrc_applied`` rows (force at the centre of mass, torque, world frame),
   set once.
 
-Stepping: ``mj_step(m, d, nstep=k)`` between samples when nothing has to be recomputed per step;
-a Python loop only for per-step drag. Only ``qpos``/``qvel`` are copied at each sample; the
-conversion to centre-of-mass position and velocity and world angular velocity is done from them
-after the run, vectorised (so MuJoCo's derived arrays, stale after ``mj_step``, are never read).
+Stepping, with no Python call per step: ``mujoco.rollout`` in chunks, keeping every k-th state
+(default), or ``mj_step(m, d, nstep=k)`` per sample (engine option ``stepping = "nstep"``); a
+Python loop only for per-step drag. Only ``qpos``/``qvel`` are kept; the conversion to
+centre-of-mass position and velocity and world angular velocity is done from them after the
+run, vectorised (so MuJoCo's derived arrays, stale after ``mj_step``, are never read).
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "eulerdamp": ((True, False), True),
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
-    "stepping": (("nstep", "rollout"), "nstep"),
+    "stepping": (("rollout", "nstep"), "rollout"),
 }
 
 # A run fails at the first sample at or after which MuJoCo's own check fired (mj_checkPos,
@@ -466,7 +467,7 @@ class MujocoModel:
         """
         if self.per_step_forces or self.options["stepping"] == "nstep":
             return self._record_loop(n_samples, k)
-        return self._record_rollout(n_samples, k)  # stepping = "rollout"
+        return self._record_rollout(n_samples, k)
 
     def _record_loop(self, n, k):
         m, d = self.model, self.data
