@@ -96,15 +96,23 @@ ROLLOUT_CHUNK_BYTES = 4 << 20
 _SCRATCH = threading.local()
 
 
-def _scratch(shape: tuple[int, ...]) -> np.ndarray:
-    """A per-thread reusable array: a fresh one per run costs page faults comparable to
-    stepping a small model (rollout writes every step's state into it)."""
-    size = int(np.prod(shape))
+def _scratch(rows: int, width: int) -> np.ndarray:
+    """A per-thread reusable (1, rows, width) array: a fresh one per run costs page faults
+    comparable to stepping a small model (rollout writes every step's state into it)."""
+    size = rows * width
     buf = getattr(_SCRATCH, "buf", None)
     if buf is None or buf.size < size:
         buf = np.empty(size)
         _SCRATCH.buf = buf
-    return buf[:size].reshape(shape)
+    return buf[:size].reshape(1, rows, width)
+
+
+def _roller():
+    """A per-thread mujoco.rollout runner without a thread pool (runs on the calling thread)."""
+    roller = getattr(_SCRATCH, "roller", None)
+    if roller is None:
+        roller = _SCRATCH.roller = _rollout.Rollout(nthread=0)
+    return roller
 
 _SHAPES_3D = ("sphere", "box", "capsule", "cylinder", "mesh")
 _SHAPES_2D = ("circle", "box", "polygon")
@@ -347,6 +355,7 @@ class MujocoModel:
                 self._loads[bid, :2] += load.force
                 self._loads[bid, 5] += load.torque[0]
         d.xfrc_applied[:] = self._loads
+        self._has_loads = bool(np.any(self._loads))
         self._step_bodies = [i for i, b in enumerate(self.bodies)
                              if b.linear_drag_per_step or b.angular_drag_per_step]
         self.per_step_forces = bool(self._step_bodies)
@@ -545,55 +554,51 @@ class MujocoModel:
         qpos[0], qvel[0] = init[0, qs], init[0, vs]
         per_chunk = max(1, ROLLOUT_CHUNK_BYTES // (8 * nstate * k)) * k
         width = min(per_chunk, max((n - 1) * k, 1))
-        out_all = _scratch((1, width, nstate))
+        out_all = _scratch(width, nstate)
         sens_all = np.empty((1, width, 0))
         # rollout is stateless: applied forces are passed as controls, here constant rows of
         # xfrc_applied. Shapes are exact, so the wrapper's checks are skipped.
-        if np.any(self._loads):
+        if self._has_loads:
             control_spec = int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
             control_all = np.ascontiguousarray(
                 np.broadcast_to(self._loads.reshape(1, 1, -1), (1, width, self._loads.size)))
         else:
             control_spec, control_all = int(mujoco.mjtState.mjSTATE_CTRL), None
-        roller = _rollout.Rollout(nthread=0)
-        run_chunk = roller.rollout_.rollout
+        run_chunk = _roller().rollout_.rollout
         models, datas = [m], [d]
         clock = time.perf_counter
         stepping = 0.0
         start = clock()
         filled = 1
         failure = None
-        try:
-            while filled < n:
-                steps = min(per_chunk, (n - filled) * k)
-                out = out_all[:, :steps]
-                control = None if control_all is None else control_all[:, :steps]
-                t0 = clock()
-                run_chunk(models, datas, steps, control_spec, init, None, control, out,
-                          sens_all[:, :steps], None)
-                stepping += clock() - t0
-                # A diverged rollout stops stepping and repeats its last state to the end of the
-                # chunk: time stalls. Row j holds the state after step j + 1.
-                times = out[0, :, 0]
-                if times[-1] <= (times[-2] if steps > 1 else init[0, 0]):
-                    first = int(np.argmax(np.diff(times, prepend=init[0, 0]) <= 0))
-                    # Step `first` (1-based) raised MuJoCo's flag and produced row first - 1,
-                    # the last state stepped; samples from that step on are invalid.
-                    if first == 0:
-                        filled -= 1  # the previous chunk's last step was the flagged one
-                    got = max(0, (first - 1) // k)
-                    failure = _UNSTABLE
-                else:
-                    got = steps // k
-                rows = out[0, k - 1:got * k:k]
-                qpos[filled:filled + got] = rows[:, qs]
-                qvel[filled:filled + got] = rows[:, vs]
-                filled += got
-                if failure is not None:
-                    break
-                init[0] = out[0, -1]
-        finally:
-            roller.close()
+        while filled < n:
+            steps = min(per_chunk, (n - filled) * k)
+            out = out_all[:, :steps]
+            control = None if control_all is None else control_all[:, :steps]
+            t0 = clock()
+            run_chunk(models, datas, steps, control_spec, init, None, control, out,
+                      sens_all[:, :steps], None)
+            stepping += clock() - t0
+            # A diverged rollout stops stepping and repeats its last state to the end of the
+            # chunk: time stalls. Row j holds the state after step j + 1.
+            times = out[0, :, 0]
+            if times[-1] <= (times[-2] if steps > 1 else init[0, 0]):
+                first = int(np.argmax(np.diff(times, prepend=init[0, 0]) <= 0))
+                # Step `first` (1-based) raised MuJoCo's flag and produced row first - 1,
+                # the last state stepped; samples from that step on are invalid.
+                if first == 0:
+                    filled -= 1  # the previous chunk's last step was the flagged one
+                got = max(0, (first - 1) // k)
+                failure = _UNSTABLE
+            else:
+                got = steps // k
+            rows = out[0, k - 1:got * k:k]
+            qpos[filled:filled + got] = rows[:, qs]
+            qvel[filled:filled + got] = rows[:, vs]
+            filled += got
+            if failure is not None:
+                break
+            init[0] = out[0, -1]
         in_loop = clock() - start - stepping
         if failure is None and not np.all(np.isfinite(init)):  # pragma: no cover - MuJoCo
             failure = "non-finite state"  # flags NaN itself; kept as a guard
