@@ -231,3 +231,17 @@ def test_sigterm_writes_the_reports_of_what_ran(tmp_path):
     assert doc["not_run"] == ["b_stuck::mujoco-exact@dt=0.01"]
     assert (tmp_path / "out" / "index.html").exists()
     assert (tmp_path / "out" / "junit.xml").exists()
+
+
+def test_workers_over_their_memory_cap_are_replaced(tmp_path):
+    case = write_case(tmp_path, "recycle", integrators='{ inhouse = ["exact", "euler", '
+                                                       '"fast_spin"] }', reference='kind = "none"',
+                      tolerances="")
+    matrix = build_matrix([load_case(case)], out=tmp_path / "out",
+                          engine_refs=refs(inhouse="exact"))
+    backend = LocalBackend(1, max_worker_rss_mb=1.0)  # every worker is over 1 MiB
+    outcome = run_and_report(matrix, backend, tmp_path / "out")
+    assert [c["status"] for c in outcome.cells] == ["pass"] * 3
+    assert backend.recycled == 3
+    assert len({c["pid"] for c in outcome.cells}) == 3  # a fresh process for each cell
+    assert outcome.doc["resources"]["workers_recycled"] == 3

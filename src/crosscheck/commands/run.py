@@ -46,6 +46,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "<engine>-<integrator>-dt<dt>.npz")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help=f"worker processes (default: the number of cores, {os.cpu_count()})")
+    p.add_argument("--worker-memory", type=float, default=768.0, metavar="MB",
+                   help="replace a local worker whose resident memory exceeds this after a cell "
+                        "(default: 768)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on a Dask distributed cluster (e.g. tcp://host:8786)")
     p.add_argument("--baseline", metavar="FILE",
@@ -112,7 +115,7 @@ def run(args) -> int:
     else:
         from crosscheck.runner.local import LocalBackend
 
-        backend = LocalBackend(args.workers)
+        backend = LocalBackend(args.workers, max_worker_rss_mb=args.worker_memory)
     n_cells, n_refs = len(matrix.cells), len(matrix.references)
     print(f"crosscheck: {len(scenes)} case(s), {n_cells} cell(s)"
           + (f" + {n_refs} reference run(s)" if n_refs else "")

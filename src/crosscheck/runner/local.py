@@ -11,8 +11,11 @@ task. Here the parent owns each worker and its pipe, so
   the caller write the report of everything already computed.
 
 Workers are started with the ``spawn`` method (no inherited locks or engine state from the
-parent). The parent samples the resident memory of itself and all its child processes with psutil
-about twice a second and keeps the peak of the sum: the run's peak memory.
+parent). A worker whose resident memory has grown past ``max_worker_rss_mb`` (default 768 MiB:
+compiled kernels and engine state accumulate over hundreds of cells) is replaced after its cell,
+so the run's memory is bounded by the number of workers, not the number of cells. The parent
+samples the resident memory of itself and all its child processes with psutil about twice a
+second and keeps the peak of the sum: the run's peak memory.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 import time
 from multiprocessing.connection import wait
 from typing import Any
@@ -29,6 +33,13 @@ from crosscheck.runner.cell import base_result
 
 def _worker_main(conn) -> None:  # pragma: no cover - runs in the child process
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    # Engines print from C (PyBullet's build banner): keep the parent's stdout for progress
+    # lines and the tables, send whatever a worker prints to stderr.
+    try:
+        sys.stdout.flush()
+        os.dup2(2, 1)
+    except OSError:
+        pass
     from crosscheck.runner.cell import execute_task
 
     while True:
@@ -65,8 +76,12 @@ class _Slot:
 class LocalBackend:
     name = "local"
 
-    def __init__(self, workers: int | None = None):
+    def __init__(self, workers: int | None = None, max_worker_rss_mb: float | None = 768.0):
         self.workers = max(1, int(workers or os.cpu_count() or 1))
+        # A worker whose resident memory exceeds this after a cell is replaced before its next
+        # one: compiled kernels (numba) and engine state accumulate over hundreds of cells.
+        self.max_worker_rss_mb = max_worker_rss_mb
+        self.recycled = 0
         self._ctx = mp.get_context("spawn")
         self._slots = [_Slot() for _ in range(self.workers)]
         self.peak_rss_total_mb = 0.0
@@ -137,6 +152,7 @@ class LocalBackend:
                 try:
                     done.append((task, slot.conn.recv()))
                     slot.task = None
+                    self._recycle_if_large(slot)
                     continue
                 except (EOFError, OSError):
                     pass  # the pipe closed: the worker died; reported below
@@ -157,6 +173,18 @@ class LocalBackend:
                 self._discard(slot, kill=True)
         self.sample_memory()
         return done
+
+    def _recycle_if_large(self, slot: _Slot) -> None:
+        if self.max_worker_rss_mb is None or slot.proc is None:
+            return
+        self.sample_memory(force=True)  # catch the peak before the worker goes
+        if tree_rss_mb(slot.proc.pid) > self.max_worker_rss_mb:
+            try:
+                slot.conn.send(None)
+            except OSError:
+                pass
+            self._discard(slot, kill=False)
+            self.recycled += 1
 
     def sample_memory(self, force: bool = False) -> None:
         now = time.monotonic()

@@ -139,4 +139,5 @@ def _refresh(doc, cells, backend, started) -> None:
         "peak_rss_total_mb": round(float(getattr(backend, "peak_rss_total_mb", 0.0)), 1),
         "peak_rss_worker_mb": round(max(rss), 1) if rss else None,
         "wall_seconds": round(time.monotonic() - started, 2),
+        "workers_recycled": getattr(backend, "recycled", None),
     }
