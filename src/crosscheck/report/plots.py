@@ -1,12 +1,14 @@
 """Per-case figures for the HTML report (matplotlib, Agg backend, PNG bytes).
 
-Each case gets one figure with up to four panels, one line per cell (engine colour, integrator
-line style): relative energy drift |E(t) - E(0)| / S_E; linear (solid) and angular (dashed)
-momentum drift; trajectory error against the reference (centre-of-mass position error, m, and
-orientation error, rad, on its own panel); and cost (wall s per simulated s) against accuracy
-(the case's first available of position_error_max, orientation_error_max, energy_drift), one
-point per cell. Curves are the down-sampled series the cells returned (the largest value in each
-bin, so peaks survive). Values of exactly zero are drawn at 1e-17 on the log axes.
+Each case gets one figure, one line per cell (engine colour, integrator line style), with a panel
+for each of: relative energy drift |E(t) - E(0)| / S_E; linear momentum drift; angular momentum
+drift; position error against the reference (m); orientation error against the reference (rad);
+and cost (wall s per simulated s) against accuracy, one point per cell. A panel whose series are
+zero for every cell (a centre of mass at rest) is left out. The accuracy axis is the first of
+position_error_max, orientation_error_max, the case's other limited metrics (e.g.
+flip_period_error), energy_drift that is non-zero for some cell. Curves are the down-sampled
+series the cells returned (the largest value in each bin, so peaks survive). Values of exactly
+zero are drawn at 1e-17 on the log axes.
 """
 
 from __future__ import annotations
@@ -43,6 +45,21 @@ def _xy(series):
     return t, y
 
 
+PANELS = (  # series name, panel title
+    ("energy_drift", "relative energy drift |E(t) - E(0)| / S_E"),
+    ("linear_momentum_drift", "linear momentum drift"),
+    ("angular_momentum_drift", "angular momentum drift"),
+    ("position_error", "position error vs reference (m)"),
+    ("orientation_error", "orientation error vs reference (rad)"),
+)
+
+
+def _has_signal(cells, name) -> bool:
+    """A panel is drawn when some cell has a non-zero value of that series."""
+    return any(any(v for v in (c["series"][name]["y"] or []) if v is not None)
+               for c in cells if name in c["series"])
+
+
 def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
     """PNG bytes of the case's figure, or None when no cell has anything to draw."""
     import matplotlib
@@ -51,51 +68,33 @@ def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
     import matplotlib.pyplot as plt
 
     drawn = [c for c in cells if c.get("series")]
-    points = [c for c in cells if (c.get("cost") or 0) > 0 and _accuracy(c)[1] is not None]
-    if not drawn and not points:
-        return None
-    panels = []
-    if any("energy_drift" in c["series"] for c in drawn):
-        panels.append(("energy", "relative energy drift"))
-    if any({"linear_momentum_drift", "angular_momentum_drift"} & set(c["series"])
-           for c in drawn):
-        panels.append(("momentum", "momentum drift (solid: linear, dashed: angular)"))
-    if any("position_error" in c["series"] for c in drawn):
-        panels.append(("position", "position error vs reference (m)"))
-    if any("orientation_error" in c["series"] for c in drawn):
-        panels.append(("orientation", "orientation error vs reference (rad)"))
+    metric = accuracy_metric(cells)
+    points = [c for c in cells if (c.get("cost") or 0) > 0 and _value(c, metric) is not None]
+    panels = [(name, title) for name, title in PANELS if _has_signal(drawn, name)]
     if points:
-        panels.append(("cost", "cost vs accuracy"))
+        panels.append(("cost", f"cost vs accuracy ({metric})"))
+    if not panels:
+        return None
     ncols = 2 if len(panels) > 1 else 1
     nrows = (len(panels) + ncols - 1) // ncols
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols, 3.4 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols, 3.2 * nrows), squeeze=False)
     multi_dt = len({c["dt"] for c in cells}) > 1
     styles = _style_map(cells)
-    for ax, (kind, title) in zip(axes.flat, panels, strict=False):
+    for ax, (name, title) in zip(axes.flat, panels, strict=False):
         ax.set_title(title, fontsize=9)
-        if kind == "cost":
-            _cost_panel(ax, points, multi_dt)
+        if name == "cost":
+            _cost_panel(ax, points, metric, multi_dt)
             continue
         ax.set_xlabel("t (s)", fontsize=8)
         ax.set_yscale("log")
         for c in drawn:
-            color = ENGINE_COLORS.get(c["engine"], "#555555")
-            style = styles[(c["engine"], c["integrator"])]
-            label = _label(c, multi_dt)
-            if kind == "energy":
-                names = [("energy_drift", style)]
-            elif kind == "momentum":
-                names = [("linear_momentum_drift", "-"), ("angular_momentum_drift", "--")]
-            elif kind == "position":
-                names = [("position_error", style)]
-            else:
-                names = [("orientation_error", style)]
-            for j, (name, ls) in enumerate(names):
-                if name in c["series"]:
-                    t, y = _xy(c["series"][name])
-                    if t:
-                        ax.plot(t, y, color=color, linestyle=ls, linewidth=1.1,
-                                label=label if j == 0 or kind != "momentum" else None)
+            if name not in c["series"]:
+                continue
+            t, y = _xy(c["series"][name])
+            if t:
+                ax.plot(t, y, color=ENGINE_COLORS.get(c["engine"], "#555555"),
+                        linestyle=styles[(c["engine"], c["integrator"])], linewidth=1.1,
+                        label=_label(c, multi_dt))
         ax.tick_params(labelsize=7)
         ax.grid(True, which="major", alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
@@ -112,26 +111,34 @@ def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
     return buf.getvalue()
 
 
-def _accuracy(cell: dict[str, Any]) -> tuple[str | None, float | None]:
-    metrics = cell.get("metrics") or {}
-    for name in ACCURACY_METRICS:
-        m = metrics.get(name)
-        if m and m.get("value") is not None and m.get("meaningful", True):
-            return name, m["value"]
-    return None, None
+def _value(cell: dict[str, Any], name: str | None) -> float | None:
+    m = (cell.get("metrics") or {}).get(name or "")
+    if m and m.get("value") is not None and m.get("meaningful", True):
+        return m["value"]
+    return None
 
 
-def _cost_panel(ax, cells, multi_dt):
-    names = {_accuracy(c)[0] for c in cells}
+def accuracy_metric(cells: list[dict[str, Any]]) -> str | None:
+    """The case's accuracy axis: the first of ACCURACY_METRICS, then any other limited metric,
+    that is non-zero for some cell (a centre of mass at rest makes position error useless)."""
+    limited = sorted({n for c in cells for n, m in (c.get("metrics") or {}).items()
+                      if m.get("limit") is not None and n not in ACCURACY_METRICS
+                      and n != "blowup_time" and not n.endswith("_drift")})
+    for name in (*ACCURACY_METRICS[:2], *limited, *ACCURACY_METRICS[2:]):
+        if any((_value(c, name) or 0) > 0 for c in cells):
+            return name
+    return None
+
+
+def _cost_panel(ax, cells, metric, multi_dt):
     for c in cells:
-        name, value = _accuracy(c)
-        ax.scatter([c["cost"]], [max(value, FLOOR)], color=ENGINE_COLORS.get(c["engine"], "#555"),
-                   s=18)
-        ax.annotate(_label(c, multi_dt), (c["cost"], max(value, FLOOR)), fontsize=6,
-                    xytext=(3, 2), textcoords="offset points")
+        value = max(_value(c, metric), FLOOR)
+        ax.scatter([c["cost"]], [value], color=ENGINE_COLORS.get(c["engine"], "#555"), s=18)
+        ax.annotate(_label(c, multi_dt), (c["cost"], value), fontsize=6, xytext=(3, 2),
+                    textcoords="offset points")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("cost: wall s per simulated s", fontsize=8)
-    ax.set_ylabel(" / ".join(sorted(n for n in names if n)), fontsize=7)
+    ax.set_ylabel(metric or "", fontsize=7)
     ax.tick_params(labelsize=7)
     ax.grid(True, alpha=0.3)
