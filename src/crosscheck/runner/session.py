@@ -94,6 +94,11 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
+    # Final order: the matrix's (case, engine, integrator, dt), not arrival order, so two
+    # results files of the same run diff cleanly.
+    order = {t["id"]: i for i, t in enumerate(matrix.tasks)}
+    cells.sort(key=lambda c: order.get(c["id"], len(order)))
+    doc["cells"].sort(key=lambda c: order.get(c["id"], len(order)))
     done_ids = {c["id"] for c in cells}
     doc["not_run"] = [t["id"] for t in matrix.cells if t["id"] not in done_ids]
     doc["interrupted"] = interrupted
