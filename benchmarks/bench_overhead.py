@@ -286,7 +286,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=float, default=2.0,
                         help="seconds of repeats per engine, case and integrator")
     parser.add_argument("--min-repeats", type=int, default=5)
-    parser.add_argument("--max-repeats", type=int, default=200)
+    parser.add_argument("--max-repeats", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     parser.add_argument("--name", default="overhead", help="output file stem")
     args = parser.parse_args(argv)
