@@ -114,6 +114,7 @@ def _roller():
         roller = _SCRATCH.roller = _rollout.Rollout(nthread=0)
     return roller
 
+
 _SHAPES_3D = ("sphere", "box", "capsule", "cylinder", "mesh")
 _SHAPES_2D = ("circle", "box", "polygon")
 
@@ -165,7 +166,9 @@ class MujocoModel:
     """One compiled MuJoCo model of one Scene, integrator and step, with the state conversions.
 
     ``set_initial_state()`` writes the scene's t = 0 state into ``data``; ``advance(n)`` steps;
-    ``convert(qpos, qvel)`` turns (T, nq)/(T, nv) samples into crosscheck's convention.
+    ``record(n, k)`` steps while sampling every k steps; ``convert(qpos, qvel)`` turns (T, nq)/
+    (T, nv) samples into crosscheck's convention; ``state()`` converts the current data;
+    ``effective()`` reads the settings back from the compiled model.
     """
 
     def __init__(self, scene: Scene, integrator: str, dt: float,
