@@ -9,14 +9,18 @@ would run; MuJoCo's model is written here as MJCF from the same Scene):
 * ``gravity``: N free boxes (mass 1, 0.1 x 0.2 x 0.3 m, each with its own orientation and a
   tumbling angular velocity) under gravity. MuJoCo: N bodies with a free joint and an explicit
   ``<inertial>`` (mass, diagonal inertia, the box's body frame), no geoms (no collision).
-* ``springs``: the same boxes in a chain, body i joined to body i+1 by a spring at off-centre
-  attachment points (forces and torques), the first one to a world anchor, under gravity.
-  MuJoCo: one spatial tendon per spring between two sites, ``stiffness`` and ``springlength``.
+* ``springs``: the same boxes in a chain, body i joined to body i+1 by a spring-damper at
+  off-centre attachment points (forces and torques), the first one to a world anchor, under
+  gravity. MuJoCo: one spatial tendon per spring between two sites, with ``stiffness``,
+  ``damping`` (along the tendon, as the in-house spring damping) and ``springlength``. The
+  damping keeps the swinging chain tame over the many seconds of simulated time a measurement
+  covers (undamped, MuJoCo's Euler went unstable after 12 s at N = 100).
 
 Reported: body-steps per second (N x steps / stepping seconds) for every in-house integrator,
-MuJoCo RK4 and Euler at dt = 1e-3, the best of ``--repeats`` runs of at least ``--min-time``
-seconds each (the machine is shared: the best run is the least disturbed; the load average is
-recorded), and ratios to MuJoCo RK4 in the same run.
+MuJoCo RK4 and Euler at dt = 1e-3, the best of ``--repeats`` runs of about ``--min-time``
+seconds each, the runs of all candidates of a scene interleaved in rounds (the machine is shared:
+the best run is the least disturbed, and interleaving spreads a burst of outside load over every
+candidate; the load average is recorded), and ratios to MuJoCo RK4 in the same run.
 
 "An undeclared effect costs nothing" is shown twice: (1) timing RK4 on the same bodies with no
 effects, gravity only, and gravity plus springs, drag and loads declared but inert (zero springs,
@@ -53,7 +57,7 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results"
 DT = 1e-3
 SIZE = (0.1, 0.2, 0.3)
-K_SPRING, REST = 20.0, 0.4
+K_SPRING, C_SPRING, REST = 20.0, 0.2, 0.4
 ATTACH_A, ATTACH_B = (0.05, 0.02, 0.1), (-0.05, -0.02, -0.1)
 # Targets of the issue: at N = 10000 in-house RK4 >= 5 x MuJoCo RK4 (MuJoCo measured 7.5e5
 # body-steps/s when the issue was written: 3.75e6); at N = 1 within 10 x of MuJoCo RK4.
@@ -90,6 +94,7 @@ a = "b0"
 attach_a = {list(ATTACH_A)}
 anchor = [-0.4, 0.0, 0.0]
 stiffness = {K_SPRING}
+damping = {C_SPRING}
 rest_length = {REST}
 """)
         for i in range(n - 1):
@@ -100,6 +105,7 @@ attach_a = {list(ATTACH_A)}
 b = "b{i + 1}"
 attach_b = {list(ATTACH_B)}
 stiffness = {K_SPRING}
+damping = {C_SPRING}
 rest_length = {REST}
 """)
     for i, (pos, q, w) in enumerate(_bodies(n)):
@@ -133,7 +139,8 @@ def mjcf(scene, integrator: str) -> str:
     for k, s in enumerate(scene.effects.springs):
         second = "anchor" if s.body_b is None else f"sb{s.body_b}"
         tendons.append(f'<spatial name="t{k}" stiffness="{s.stiffness!r}" '
-                       f'springlength="{s.rest_length!r}"><site site="sa{s.body_a}"/>'
+                       f'damping="{s.damping!r}" springlength="{s.rest_length!r}">'
+                       f'<site site="sa{s.body_a}"/>'
                        f'<site site="{second}"/></spatial>')
     anchor = '<site name="anchor" pos="-0.4 0 0"/>'
     memory = max(64, len(scene.bodies) // 20)  # MB: MuJoCo's arena (10000 bodies need ~500)
@@ -144,45 +151,53 @@ def mjcf(scene, integrator: str) -> str:
 
 
 # -- timing ---------------------------------------------------------------------------------------
-def best_rate(step, n_bodies: int, repeats: int, min_time: float) -> dict:
-    """Best body-steps per second of step(k) over repeats, each run lasting >= min_time s."""
+def calibrate(step, min_time: float) -> int:
+    """Steps per timed call so that one call lasts about min_time seconds."""
     k = 1
-    while True:  # calibrate: double until one call takes a tenth of min_time
+    while True:  # double until one call takes a tenth of min_time
         t0 = time.perf_counter()
         step(k)
         el = time.perf_counter() - t0
         if el >= 0.1 * min_time or k >= 1 << 24:
             break
         k *= 2
-    k = max(1, int(k * min_time / max(el, 1e-9)))
-    rates = []
+    return max(1, int(k * min_time / max(el, 1e-9)))
+
+
+def measure(steppers: dict, repeats: int, min_time: float) -> dict:
+    """Best body-steps per second of every stepper, the repeats interleaved in rounds.
+
+    ``steppers``: key -> (step(k), n_bodies, finite()). Interleaving spreads a burst of load from
+    other processes on the shared machine over all candidates instead of one of them.
+    """
+    ks = {key: calibrate(step, min_time) for key, (step, _, _) in steppers.items()}
+    rates = {key: [] for key in steppers}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        step(k)
-        rates.append(n_bodies * k / (time.perf_counter() - t0))
-    return {"body_steps_per_s": max(rates), "median": float(np.median(rates)), "steps": k,
-            "repeats": repeats}
+        for key, (step, n_bodies, _) in steppers.items():
+            t0 = time.perf_counter()
+            step(ks[key])
+            rates[key].append(n_bodies * ks[key] / (time.perf_counter() - t0))
+    return {key: {"body_steps_per_s": max(rates[key]), "median": float(np.median(rates[key])),
+                  "steps": ks[key], "repeats": repeats, "finite": steppers[key][2]()}
+            for key in steppers}
 
 
-def inhouse_rate(model, scene, integrator, repeats, min_time) -> dict:
+def inhouse_stepper(model, scene, integrator):
     sim = RigidSimulation(model, integrator)
     state = state_from_scene(model, scene)
     sim.warmup(state, DT)
-    out = best_rate(lambda k: sim.advance(state, k, DT), model.n_bodies, repeats, min_time)
-    out["finite"] = state.is_finite()
-    return out
+    return (lambda k: sim.advance(state, k, DT)), model.n_bodies, state.is_finite
 
 
-def mujoco_rate(scene, integrator, repeats, min_time) -> dict:
+def mujoco_stepper(scene, integrator):
     m = mujoco.MjModel.from_xml_string(mjcf(scene, integrator))
     d = mujoco.MjData(m)
     for i, b in enumerate(scene.bodies):  # free joint: world linear, body-local angular velocity
         d.qvel[6 * i: 6 * i + 3] = b.velocity
         d.qvel[6 * i + 3: 6 * i + 6] = quat_to_matrix(b.orientation).T @ b.angular_velocity
     mujoco.mj_step(m, d, 2)
-    out = best_rate(lambda k: mujoco.mj_step(m, d, k), len(scene.bodies), repeats, min_time)
-    out["finite"] = bool(np.all(np.isfinite(d.qpos)))
-    return out
+    return ((lambda k: mujoco.mj_step(m, d, k)), len(scene.bodies),
+            lambda: bool(np.all(np.isfinite(d.qpos))))
 
 
 def inert(model):
@@ -237,8 +252,8 @@ def ir_check() -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[1, 100, 10000])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--min-time", type=float, default=0.3)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--min-time", type=float, default=0.2)
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--no-ir", action="store_true")
     args = ap.parse_args()
@@ -251,24 +266,22 @@ def main() -> None:
             kind = "springs" if springs else "gravity"
             scene = load_case_text(scene_text(n, springs))
             model = compile_model(scene)
-            for integ in INTEGRATORS:
-                r = inhouse_rate(model, scene, integ, args.repeats, args.min_time)
-                rows.append(dict(r, scene=kind, n=n, engine="inhouse", integrator=integ))
-                print(f"{kind:8s} N={n:6d} inhouse {integ:22s} {r['body_steps_per_s']:.3g}",
-                      flush=True)
-            for integ in ("RK4", "Euler"):
-                r = mujoco_rate(scene, integ, args.repeats, args.min_time)
-                rows.append(dict(r, scene=kind, n=n, engine="mujoco", integrator=integ.lower()))
-                print(f"{kind:8s} N={n:6d} mujoco  {integ:22s} {r['body_steps_per_s']:.3g}",
-                      flush=True)
+            steppers = {("inhouse", integ): inhouse_stepper(model, scene, integ)
+                        for integ in INTEGRATORS}
+            steppers.update({("mujoco", integ.lower()): mujoco_stepper(scene, integ)
+                             for integ in ("RK4", "Euler")})
             if not springs:
                 for label, variant in (("no effects", model.without("gravity")),
                                        ("gravity only", model),
                                        ("gravity + inert springs, drag, loads", inert(model))):
-                    r = inhouse_rate(variant, scene, "rk4", args.repeats, args.min_time)
-                    effect_cost.append(dict(r, n=n, variant=label))
-                    print(f"effects  N={n:6d} {label:40s} {r['body_steps_per_s']:.3g}",
-                          flush=True)
+                    steppers[("effects", label)] = inhouse_stepper(variant, scene, "rk4")
+            for (engine, name), r in measure(steppers, args.repeats, args.min_time).items():
+                if engine == "effects":
+                    effect_cost.append(dict(r, n=n, variant=name))
+                else:
+                    rows.append(dict(r, scene=kind, n=n, engine=engine, integrator=name))
+                print(f"{kind:8s} N={n:6d} {engine:8s} {name:36s} {r['body_steps_per_s']:.3g}",
+                      flush=True)
     mj_rk4 = {(r["scene"], r["n"]): r["body_steps_per_s"] for r in rows
               if r["engine"] == "mujoco" and r["integrator"] == "rk4"}
     for r in rows:
@@ -314,7 +327,8 @@ def markdown(result: dict, sizes) -> str:
         "",
         f"Recorded {meta['started']} on {meta['cpus']} cores ({meta['machine']}), one thread, "
         f"numba {meta['numba']}, MuJoCo {meta['mujoco']}; dt = {meta['dt']:g} s. Best of "
-        f"{meta['repeats']} runs of at least {meta['min_time']:g} s each (median in the JSON). "
+        f"{meta['repeats']} runs of about {meta['min_time']:g} s each, interleaved (median in the "
+        "JSON). "
         f"Load average {meta['load_average_before'][0]:.1f} before, "
         f"{meta['load_average_after'][0]:.1f} after: the machine is shared, so absolute figures "
         "move from run to run; ratios come from the same run. Generated by "
