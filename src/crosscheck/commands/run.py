@@ -142,7 +142,8 @@ def run(args) -> int:
     print()
     print(headline(outcome.doc))
     print(f"peak resident memory {res.get('peak_rss_total_mb')} MiB over {res.get('workers')} "
-          f"{res.get('backend')} worker(s); wall {res.get('wall_seconds')} s")
+          f"{res.get('backend')} worker(s) (largest single cell {res.get('peak_rss_worker_mb')} "
+          f"MiB); wall {res.get('wall_seconds')} s")
     print(f"reports: {Path(args.out) / 'index.html'}, results.json, summary.md, junit.xml")
     return outcome.exit_status
 
@@ -189,8 +190,8 @@ def end_state_table(cells: list[dict]) -> str:
                     other = None  # different end times: not comparable
             if other and other.get("com") is not None:
                 try:
-                    dx, dq, dv = _diff(end, other)
-                    vals = (f"{dx:.3g}", f"{dq:.3g}", f"{dv:.3g}")
+                    vals = tuple("" if v != v else f"{v:.3g}"  # NaN: the reference lacks it
+                                 for v in _diff(end, other))
                 except (ValueError, TypeError):
                     vals, vs = ("", "", ""), ""
             else:
