@@ -131,7 +131,12 @@ class LocalBackend:
         if slot.proc is None or not slot.proc.is_alive():
             self._discard(slot, kill=True)
             self._start(slot)
-        slot.conn.send(task)
+        try:
+            slot.conn.send(task)
+        except OSError:  # the idle worker died (e.g. the OOM killer): one fresh try
+            self._discard(slot, kill=True)
+            self._start(slot)
+            slot.conn.send(task)
         slot.task = task
         slot.started = time.monotonic()
         slot.deadline = slot.started + float(task.get("timeout") or 600.0)
