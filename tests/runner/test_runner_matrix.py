@@ -101,8 +101,9 @@ def test_every_failure_mode_is_one_cells_result(tmp_path):
     assert cells["more::inhouse-exact@dt=0.01"]["status"] == "pass"
     assert cells["more::mujoco-exact@dt=0.01"]["status"] == "error"
     assert outcome.exit_status == 1
-    # The hang cost its 3 s timeout, not more (spawn start-up of replacement workers aside).
-    assert elapsed < 20
+    # The hang cost its 3 s timeout, not the case's default 600 s (the bound leaves room for
+    # spawning replacement workers on a loaded machine).
+    assert elapsed < 45
     doc = json.loads((tmp_path / "out" / "results.json").read_text())
     assert doc["counts"] == {"pass": 3, "error": 3, "timeout": 1}
     assert 0 < doc["resources"]["peak_rss_total_mb"] < 2048
