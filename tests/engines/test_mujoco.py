@@ -391,7 +391,7 @@ def test_drag_on_centred_body_is_exact_joint_damping(errors):
     body = traj.meta["effective"]["bodies"][0]
     assert body["linear_drag"] == body["angular_drag"] == "joint damping"
     assert body["dof_damping"] == [0.8] * 3 + [0.02] * 3
-    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    assert traj.meta["effective"]["stepping"].startswith("compiled loop")
     assert coarse < 1e-10
 
 
@@ -445,8 +445,9 @@ torque = [0.02, 0.0, -0.01]
                                    rtol=0, atol=1e-12)
     traj, err = errors(scene, "rk4", 1e-3)
     assert err < 1e-9  # constant loads are exact for RK4 up to the rotation coupling
-    # Constant loads need no per-step Python: constant xfrc_applied controls of the rollout.
-    assert traj.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    # Constant loads need no per-step Python: xfrc_applied set once (passed as constant
+    # controls to mujoco.rollout).
+    assert traj.meta["effective"]["stepping"].startswith("compiled loop")
 
 
 # -- 2D: planar joints through the centre of mass ------------------------------------------------
@@ -560,16 +561,21 @@ torque = [0.02, 0.0, -0.01]
 
 @pytest.mark.parametrize("effects", [SPRING, SPRING + LOAD], ids=["spring", "spring+load"])
 def test_rollout_nstep_and_single_steps_are_bit_identical(effects):
-    # The default recorder (stateless mujoco.rollout in chunks, loads passed as xfrc_applied
-    # controls), mj_step(m, d, nstep=k) per sample and k single mj_step calls are the same
-    # arithmetic: bit-identical samples. Runs repeat bit for bit.
+    # The default recorder (a compiled loop calling the C mj_step), the stateless
+    # mujoco.rollout in chunks (loads passed as xfrc_applied controls), mj_step(m, d, nstep=k)
+    # per sample and k single mj_step calls are the same arithmetic: bit-identical samples.
+    # Runs repeat bit for bit.
     scene = scene3d(effects=effects)
     stepped = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "nstep"')
+    rolled = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "rollout"')
     a, b = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(stepped, "rk4", 1e-3)
-    assert a.meta["effective"]["stepping"].startswith("mujoco.rollout")
+    c = ENGINE.run(rolled, "rk4", 1e-3)
+    assert a.meta["effective"]["stepping"].startswith("compiled loop")
     assert b.meta["effective"]["stepping"].startswith("mj_step")
+    assert c.meta["effective"]["stepping"].startswith("mujoco.rollout")
     for name in ("com", "quat", "vel", "omega"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        np.testing.assert_array_equal(getattr(a, name), getattr(c, name))
     again = ENGINE.run(scene, "rk4", 1e-3)
     np.testing.assert_array_equal(again.quat, a.quat)
 
@@ -586,7 +592,8 @@ def test_rollout_chunks_join_exactly(monkeypatch):
     # Long rollouts are cut in chunks (memory bound); chunk boundaries must not show.
     import crosscheck.engines.mujoco as adapter
 
-    scene = scene3d(duration=0.5, effects=SPRING + LOAD)
+    scene = scene3d(duration=0.5, effects=SPRING + LOAD,
+                    options='[engine_options.mujoco]\nstepping = "rollout"')
     whole = ENGINE.run(scene, "euler", 1e-3)
     monkeypatch.setattr(adapter, "ROLLOUT_CHUNK_BYTES", 8 * 14 * 30)  # 3 samples per chunk
     chunked = ENGINE.run(scene, "euler", 1e-3)
@@ -613,7 +620,7 @@ def test_blow_up_is_a_result_not_a_reset(stiffness, tmp_path, monkeypatch):
     # semi-implicit Euler's amplitude grows by 1.15 to 1.22 per step. MuJoCo flags the state once
     # |qacc| > 1e10 (x ~ 2.5e5 m, 0.58 s or 0.93 s in: before and after the step loop's first
     # check at sample 64, so both its replay paths run). The run ends with a failure at the
-    # same sample time with either recorder; it does not raise, and MuJoCo does not silently
+    # same sample time with every recorder; it does not raise, and MuJoCo does not silently
     # reset the state (autoreset disabled).
     monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
     effects = f"""
@@ -623,7 +630,7 @@ anchor = [0.1, -0.2, 0.0]
 stiffness = {stiffness}
 """
     runs = {}
-    for stepping in ("nstep", "rollout"):
+    for stepping in ("nstep", "rollout", "compiled"):
         options = f'[engine_options.mujoco]\nstepping = "{stepping}"'
         scene = scene3d(duration=3.0, dt=0.01, com=[0, 0, 0], effects=effects, omega=(0, 0, 0),
                         velocity=(0, 0, 0), options=options)
@@ -633,8 +640,9 @@ stiffness = {stiffness}
         assert len(traj.t) == round(traj.failure["time"] / 0.01)
         assert np.all(np.isfinite(traj.com)) and np.all(np.abs(traj.com) < 1e10)
         assert np.max(np.abs(traj.com[-1, 0] - traj.com[0, 0])) > 1e3  # it did grow
-    assert runs["nstep"].failure == runs["rollout"].failure
+    assert runs["nstep"].failure == runs["rollout"].failure == runs["compiled"].failure
     np.testing.assert_array_equal(runs["nstep"].com, runs["rollout"].com)
+    np.testing.assert_array_equal(runs["nstep"].com, runs["compiled"].com)
     # Sensitivity: with MuJoCo's default autoreset the same stepping stays finite (reset to
     # qpos0 and time 0 over and over), so no recorder could see the blow-up.
     sim = ENGINE.build(scene, "euler", 0.01)
