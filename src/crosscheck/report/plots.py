@@ -138,6 +138,14 @@ def _cost_panel(ax, cells, metric, multi_dt):
                     textcoords="offset points")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    # Spans under a decade get labelled minor ticks that overprint each other: label only
+    # 1, 2 and 5 times a power of ten.
+    from matplotlib import ticker
+
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False))
+        axis.set_minor_formatter(ticker.NullFormatter())
     ax.set_xlabel("cost: wall s per simulated s", fontsize=8)
     ax.set_ylabel(metric or "", fontsize=7)
     ax.tick_params(labelsize=7)
