@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from crosscheck.commands._json import add_json_flag, emit, human_output
+
 DEFAULT_BASELINE = "reports/baseline.json"
 
 
@@ -28,15 +30,25 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="keep the old baseline's cells that this run did not run")
     up.add_argument("--allow-failures", action="store_true",
                     help="write even if cells failed (they are recorded with their status)")
+    add_json_flag(up)
     up.set_defaults(func=run)
     cmp = sub.add_parser("compare", help="compare a run with the baseline; exit 1 on regression")
     cmp.add_argument("--from", dest="source", required=True, metavar="DIR")
     cmp.add_argument("--baseline", default=DEFAULT_BASELINE, metavar="FILE")
+    add_json_flag(cmp)
     cmp.set_defaults(func=run)
     return p
 
 
 def run(args) -> int:
+    with human_output(args.json):
+        status, payload = _run(args)
+    if args.json:
+        emit(payload)
+    return status
+
+
+def _run(args) -> tuple[int, dict]:
     from crosscheck.baseline import (
         BaselineError,
         baseline_from_results,
@@ -51,7 +63,7 @@ def run(args) -> int:
         base = load_baseline(args.baseline)
         comparison = compare(base, results)
         print("\n".join(comparison.lines()))
-        return 1 if comparison.regressions else 0
+        return (1 if comparison.regressions else 0), comparison.to_dict()
 
     if results.get("interrupted") and not args.merge:
         raise BaselineError(f"{args.source}: the run was interrupted; a baseline from it would "
@@ -64,6 +76,7 @@ def run(args) -> int:
             "--allow-failures to record them as they are")
     out = Path(args.out)
     previous = load_baseline(out) if out.exists() else None
+    comparison = None
     source = str(Path(args.source))
     doc = baseline_from_results(results, source=source, previous=previous, merge=args.merge)
     if previous is not None:
@@ -80,4 +93,5 @@ def run(args) -> int:
         statuses[e["status"]] = statuses.get(e["status"], 0) + 1
     print(f"wrote {out}: {len(doc['entries'])} cell(s) "
           + ", ".join(f"{n} {s}" for s, n in sorted(statuses.items())))
-    return 0
+    return 0, {"wrote": str(out), "cells": len(doc["entries"]), "statuses": statuses,
+               "changes": comparison.to_dict() if comparison is not None else None}

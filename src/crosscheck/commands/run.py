@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from crosscheck.commands._json import add_json_flag, emit, human_output
 from crosscheck.errors import CrosscheckError
 
 
@@ -62,6 +63,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--engine-ref", action="append", default=[], metavar="NAME=MODULE:CLASS",
                    help="use this adapter class for engine NAME (adapters under development, "
                         "tests); repeatable")
+    add_json_flag(p)
     p.set_defaults(func=run)
     return p
 
@@ -79,6 +81,14 @@ def _engine_refs(items: list[str]) -> dict[str, str]:
 
 
 def run(args) -> int:
+    with human_output(args.json):
+        status, doc = _run(args)
+    if args.json:
+        emit(doc)
+    return status
+
+
+def _run(args) -> tuple[int, dict]:
     from crosscheck.baseline import load_baseline
     from crosscheck.runner.plan import UsageError, build_matrix, parse_dts, parse_list
     from crosscheck.runner.progress import make_progress
@@ -145,7 +155,7 @@ def run(args) -> int:
           f"{res.get('backend')} worker(s) (largest single cell {res.get('peak_rss_worker_mb')} "
           f"MiB); wall {res.get('wall_seconds')} s")
     print(f"reports: {Path(args.out) / 'index.html'}, results.json, summary.md, junit.xml")
-    return outcome.exit_status
+    return outcome.exit_status, outcome.doc
 
 
 # -- the end-state table ---------------------------------------------------------------------------

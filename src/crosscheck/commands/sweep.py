@@ -13,6 +13,8 @@ import argparse
 import json
 from pathlib import Path
 
+from crosscheck.commands._json import add_json_flag, emit, human_output
+
 
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("sweep", help="integrators over a range of steps: accuracy, cost, "
@@ -33,6 +35,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--engine-ref", action="append", default=[], metavar="NAME=MODULE:CLASS",
                    help="use this adapter class for engine NAME (tests, adapters in development)")
     p.add_argument("--progress", choices=("auto", "bar", "plain", "none"), default="auto")
+    add_json_flag(p)
     p.set_defaults(func=run)
     return p
 
@@ -56,6 +59,14 @@ def _all_integrators(scene, engines, engine_refs) -> list[str]:
 
 
 def run(args) -> int:
+    with human_output(args.json):
+        status, payload = _run(args)
+    if args.json:
+        emit(payload)
+    return status
+
+
+def _run(args) -> tuple[int, dict]:
     from crosscheck.commands.run import _engine_refs
     from crosscheck.report.atomic import write_bytes, write_text
     from crosscheck.runner.cell import safe_name
@@ -86,14 +97,14 @@ def run(args) -> int:
     metric, series = sweep.analyse(outcome.cells, args.metric)
     text = f"# Sweep of {scene.name}\n\n" + sweep.table(metric, series) + "\n"
     write_text(out / "sweep.md", text)
-    write_text(out / "sweep.json", json.dumps(
-        {"case": scene.name, "metric": metric, "dts": dts,
-         "series": [s.to_dict() for s in series],
-         "pareto": [dict(zip(("label", "dt", "cost", "error"), p, strict=True))
-                    for p in sweep.pareto(series)]}, indent=1) + "\n")
+    summary = {"case": scene.name, "metric": metric, "dts": dts,
+               "series": [s.to_dict() for s in series],
+               "pareto": [dict(zip(("label", "dt", "cost", "error"), p, strict=True))
+                          for p in sweep.pareto(series)]}
+    write_text(out / "sweep.json", json.dumps(summary, indent=1) + "\n")
     write_bytes(out / "sweep.png", sweep.figure(scene.name, metric, series))
     print()
     print(text)
     print(f"plots: {out / 'sweep.png'}; every cell: {out / 'index.html'}")
     # A sweep explores: blow-ups at large steps are findings, not failures.
-    return 0 if not outcome.doc.get("interrupted") else 130
+    return (0 if not outcome.doc.get("interrupted") else 130), summary
