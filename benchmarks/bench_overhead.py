@@ -2,22 +2,33 @@
 
 For every registered adapter that can run a case, and each integrator the case lists for it:
 
-* **bare**: the adapter's own model object advanced through all of the run's steps with nothing
-  read back (for MuJoCo one ``mj_step(m, d, nstep=N)`` call), timed alone;
+* **bare**: the adapter's own model advanced through all of the run's steps with nothing read
+  back, by the fastest stepping loop the adapter itself uses (MuJoCo: one ``mj_step(m, d,
+  nstep=N)`` call; Pymunk: the compiled ``cpSpaceStep`` loop; PyBullet: ``stepSimulation(cid)``
+  per step from Python), timed alone;
 * **recorded loop**: CPU time of ``engine.run(scene, integrator, dt)`` minus that of the same
   run cut to one sample: model build and settings read-back cancel, what remains is stepping
   between samples, copying each sample and converting them all into the Trajectory.
 
 overhead = loop / bare - 1; the target is below 10 %. Times are the thread's CPU time (the
 machine is shared; wall time under contention measures the scheduler), minimum over interleaved
-repeats run until a time budget is spent. An engine with no bare stepper registered in ``BARE``
-is reported with the in-run wall-clock ratio recording / stepping from its Trajectory's meta.
+repeats run until a time budget is spent.
 
 Cases: ``free-flight`` (one body, centre of mass off its origin, full inertia, spinning at 150
 rad/s for 1 s: the conformance suite's scene), ``tennis-racket`` (cases/rigid3d/tennis_racket.toml,
 20 s) and, for 2D-only engines, ``free-flight-2d`` (a plate spinning at 150 rad/s for 1 s).
 
+Then, to show where a 10 % target can hold and where it cannot:
+
+* **floors**: per engine and path, the cost of one step and of the reads a sample needs, each
+  measured in context (a loop stepping k = 10 steps and reading once per sample, minus the same
+  loop without the reads), and the floor ratio = reads per sample x cost per read / (k x cost
+  per step), with the smallest k at which that floor is under 10 %;
+* **sweeps**: the full measured overhead of the free-flight case at sparser sampling (k = 10,
+  20, 50, 100 steps per sample) and with more bodies (N = 1, 10, 100 free-flying bodies).
+
     .venv/bin/python benchmarks/bench_overhead.py [--engines mujoco,pybullet] [--budget 2]
+        [--no-floors] [--no-sweeps]
 
 writes benchmarks/results/overhead.json and overhead.md. Not a test: figures depend on the
 machine; the committed ones say which machine.
@@ -27,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
@@ -106,6 +118,54 @@ def cases() -> list[Scene]:
             free_flight_2d()]
 
 
+def many_bodies(n: int, dimension: int, steps_per_sample: int = 10, duration: float = 1.0
+                ) -> Scene:
+    """``n`` copies of the free-flight body (3D) or plate (2D), on a grid, each turned and
+    spinning differently, nothing between them: free flight at dt = 1e-3."""
+    rng = np.random.default_rng(7)
+    axes = quat_to_matrix(axis_angle_to_quat([0.3, -1.0, 0.5], 0.9))
+    inertia = axes @ np.diag([0.010, 0.017, 0.022]) @ axes.T
+    bodies = []
+    for i in range(n):
+        x, y = 0.5 * (i % 10), 0.5 * (i // 10)
+        if dimension == 3:
+            q0 = axis_angle_to_quat(rng.normal(size=3), float(rng.uniform(0.1, 3.0)))
+            omega = 150.0 * quat_to_matrix(q0) @ axes[:, 2]
+            bodies.append(f"""
+[[bodies]]
+name = "b{i}"
+shape = {{ box = {{ size = [0.3, 0.2, 0.1] }} }}
+mass = 2.0
+com = [0.03, -0.02, 0.01]
+inertia = {_j(inertia)}
+position = [{x}, {y}, 0.5]
+orientation = {_j(q0)}
+velocity = [1.0, -0.5, 0.25]
+angular_velocity = {_j(omega)}
+""")
+        else:
+            bodies.append(f"""
+[[bodies]]
+name = "b{i}"
+shape = {{ box = {{ size = [0.3, 0.1] }} }}
+mass = 1.5
+com = [0.04, -0.03]
+position = [{x}, {y}]
+orientation = {float(rng.uniform(-3, 3))}
+velocity = [1.0, -0.5]
+angular_velocity = 150.0
+""")
+    return load_case_text(f"""
+[case]
+name = "free-flight-x{n}"
+dimension = {dimension}
+[run]
+duration = {float(duration)!r}
+dt = 1e-3
+sample_every = {steps_per_sample * 1e-3!r}
+""" + "".join(bodies), name=f"free-flight-x{n}")
+
+
 # -- bare steppers: (scene, integrator, dt, steps) -> CPU seconds of stepping alone ---------------
 # Timed with the thread's CPU clock: this machine is shared (2 cores, other jobs), and wall time
 # under contention measures the scheduler more than the engine.
@@ -145,7 +205,8 @@ def _bare_pymunk(scene, integrator, dt, steps):
 
 # Extra rows: an adapter's alternative recorders, measured on the case's first integrator.
 VARIANTS: dict[str, list[tuple[str, dict]]] = {
-    "mujoco": [("stepping=nstep", {"stepping": "nstep"})],
+    "mujoco": [("stepping=rollout", {"stepping": "rollout"}),
+               ("stepping=nstep", {"stepping": "nstep"})],
 }
 
 BARE: dict[str, Callable[[Scene, str, float, int], float]] = {
@@ -211,6 +272,299 @@ def measure(engine, scene: Scene, integrator: str, budget: float, min_repeats: i
     return out
 
 
+# -- floors: per-call costs in context --------------------------------------------------------
+SAMPLES = 100  # per timed loop: 100 samples of k steps, the free-flight case's size
+K = 10  # the cases' steps per sample
+
+
+def _min_interleaved(fns: dict[str, Callable[[], float]], budget: float,
+                     reset: Callable[[], None] | None = None, min_repeats: int = 20
+                     ) -> dict[str, float]:
+    """Minimum CPU time of each timed function over interleaved repeats (reset untimed)."""
+    best = {name: math.inf for name in fns}
+    for fn in fns.values():  # warm-up
+        if reset is not None:
+            reset()
+        fn()
+    start, repeats = time.perf_counter(), 0
+    while repeats < min_repeats or time.perf_counter() - start < budget:
+        for name, fn in fns.items():
+            if reset is not None:
+                reset()
+            best[name] = min(best[name], fn())
+        repeats += 1
+    return best
+
+
+def _floor_row(engine: str, path: str, n: int, step_s: float, calls: int, sample_s: float,
+               note: str = "") -> dict:
+    """step_s: CPU seconds per step (all n bodies); sample_s: extra seconds per sample for the
+    reads; calls: engine calls a sample needs beyond the stepping."""
+    floor = sample_s / (K * step_s)
+    return {"engine": engine, "path": path, "bodies": n, "step_us": step_s * 1e6,
+            "calls_per_sample": calls, "per_call_us": sample_s / calls * 1e6 if calls else None,
+            "per_sample_us": sample_s * 1e6, "floor_at_k10": floor,
+            "k_for_10pct": max(1, math.ceil(sample_s / (TARGET * step_s))), "note": note}
+
+
+def _pybullet_costs(integrator: str, n: int, budget: float) -> dict[str, float]:
+    import pybullet as p
+
+    from crosscheck.engines.pybullet import PybulletModel
+
+    model = PybulletModel(many_bodies(n, 3), integrator, 1e-3)
+    try:
+        poses = model.base_poses()
+        model.probe()
+        cid, uids = model.cid, [b.uid for b in model.bodies]
+        step, pose, vel = p.stepSimulation, p.getBasePositionAndOrientation, p.getBaseVelocity
+        steps = range(K)
+
+        def bare():
+            t0 = CLOCK()
+            for _ in range(K * SAMPLES):
+                step(cid)
+            return CLOCK() - t0
+
+        def bare_keyword():
+            t0 = CLOCK()
+            for _ in range(K * SAMPLES):
+                step(physicsClientId=cid)
+            return CLOCK() - t0
+
+        def one_read():
+            t0 = CLOCK()
+            for _ in range(SAMPLES):
+                for _ in steps:
+                    step(cid)
+                for u in uids:
+                    pose(u, cid)
+            return CLOCK() - t0
+
+        def two_reads():
+            t0 = CLOCK()
+            for _ in range(SAMPLES):
+                for _ in steps:
+                    step(cid)
+                for u in uids:
+                    pose(u, cid)
+                    vel(u, cid)
+            return CLOCK() - t0
+
+        return _min_interleaved({"bare": bare, "keyword": bare_keyword, "one": one_read,
+                                 "two": two_reads}, budget,
+                                reset=lambda: model.set_initial_state(poses))
+    finally:
+        model.close()
+
+
+def floors_pybullet(n: int, budget: float) -> list[dict]:
+    rows = []
+    for integrator in ("multibody", "maximal"):
+        t = _pybullet_costs(integrator, n, budget)
+        step_s = t["bare"] / (K * SAMPLES)
+        pose_s = (t["one"] - t["bare"]) / (SAMPLES * n)
+        vel_s = (t["two"] - t["one"]) / (SAMPLES * n)
+        rows.append(_floor_row(
+            "pybullet", f"{integrator}: stepSimulation(cid) per step; getBasePositionAndOrientation"
+            " + getBaseVelocity per body", n, step_s, 2 * n, (t["two"] - t["bare"]) / SAMPLES,
+            note=f"per call: pose {pose_s * 1e6:.2f} us, velocity {vel_s * 1e6:.2f} us; a "
+                 f"keyword client id costs {(t['keyword'] - t['bare']) / (K * SAMPLES) * 1e6:.2f}"
+                 " us more per step"))
+    return rows
+
+
+def _pybullet_substep_run(integrator: str, sub: int, budget: float) -> tuple[float, np.ndarray]:
+    import pybullet as p
+
+    from crosscheck.engines.pybullet import PybulletModel
+
+    model = PybulletModel(free_flight(), integrator, 1e-3)
+    try:
+        poses = model.base_poses()
+        model.probe()
+        cid = model.cid
+        if sub > 1:
+            p.setPhysicsEngineParameter(fixedTimeStep=sub * 1e-3, numSubSteps=sub,
+                                        physicsClientId=cid)
+
+        def run():
+            t0 = CLOCK()
+            for _ in range(K * SAMPLES // sub):
+                p.stepSimulation(cid)
+            return CLOCK() - t0
+
+        best = _min_interleaved({"run": run}, budget,
+                                reset=lambda: model.set_initial_state(poses))["run"]
+        model.set_initial_state(poses)
+        run()
+        return best, np.array(model.read_raw())
+    finally:
+        model.close()
+
+
+def substeps_pybullet(budget: float) -> list[dict]:
+    """numSubSteps = k (one stepSimulation call per sample): cost per step and whether the
+    state after the free-flight second equals k single steps bit for bit. Not used by the
+    adapter (docs/engines.md says why); measured so the bare loop's choice is visible."""
+    out = []
+    for integrator in ("multibody", "maximal"):
+        single, a = _pybullet_substep_run(integrator, 1, budget / 2)
+        grouped, b = _pybullet_substep_run(integrator, K, budget / 2)
+        out.append({"engine": "pybullet", "integrator": integrator,
+                    "step_us_single": single / (K * SAMPLES) * 1e6,
+                    "step_us_substeps": grouped / (K * SAMPLES) * 1e6,
+                    "bit_identical_on_free_flight": bool(np.array_equal(a, b))})
+    return out
+
+
+def floors_pymunk(n: int, budget: float) -> list[dict]:
+    from crosscheck.engines.pymunk import PymunkModel, _cp
+
+    model = PymunkModel(many_bodies(n, 2), 1e-3)
+    native, fns, space, bodies, cogs = model.native
+    dt = 1e-3
+    handle = model.space._space
+    cstep, read_raw, space_step = _cp.cpSpaceStep, model.read_raw, model.space.step
+    steps = range(K)
+    out = np.empty((SAMPLES + 1, n, 6))
+
+    def compiled_bare():
+        t0 = CLOCK()
+        native.chipmunk_step(fns[0], space, dt, K * SAMPLES)
+        return CLOCK() - t0
+
+    def compiled_rec():
+        t0 = CLOCK()
+        native.chipmunk_record(fns, space, dt, K, bodies, cogs, out)
+        return CLOCK() - t0
+
+    def cffi_bare():
+        t0 = CLOCK()
+        for _ in range(K * SAMPLES):
+            cstep(handle, dt)
+        return CLOCK() - t0
+
+    def cffi_rec():
+        t0 = CLOCK()
+        for _ in range(SAMPLES):
+            for _ in steps:
+                cstep(handle, dt)
+            read_raw()
+        return CLOCK() - t0
+
+    def public_bare():
+        t0 = CLOCK()
+        for _ in range(K * SAMPLES):
+            space_step(dt)
+        return CLOCK() - t0
+
+    t = _min_interleaved({"cb": compiled_bare, "cr": compiled_rec, "pb": cffi_bare,
+                          "pr": cffi_rec, "sb": public_bare}, budget)
+    return [
+        _floor_row("pymunk", "compiled loop: cpSpaceStep and 4 C getters per body (adapter)",
+                   n, t["cb"] / (K * SAMPLES), 4 * n, (t["cr"] - t["cb"]) / SAMPLES),
+        _floor_row("pymunk", "python: cpSpaceStep through cffi, 4 C getters per body via cffi",
+                   n, t["pb"] / (K * SAMPLES), 4 * n, (t["pr"] - t["pb"]) / SAMPLES,
+                   note=f"Space.step costs {t['sb'] / (K * SAMPLES) * 1e6:.2f} us per step; "
+                        "this loop's stepping is itself slower than the compiled one's"),
+    ]
+
+
+def floors_mujoco(n: int, budget: float) -> list[dict]:
+    import mujoco
+
+    from crosscheck.engines.mujoco import _native_stepper
+
+    sim = get_engine("mujoco").build(many_bodies(n, 3), "euler", 1e-3)
+    m, d = sim.model, sim.data
+    spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    init = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, init, spec)
+    states = np.empty((SAMPLES, init.size))
+    rows_ = list(states)
+    native, address, _ = _native_stepper()
+    qpos, qvel = np.empty((SAMPLES + 1, m.nq)), np.empty((SAMPLES + 1, m.nv))
+    step, get = mujoco.mj_step, mujoco.mj_getState
+
+    def bare():
+        t0 = CLOCK()
+        step(m, d, K * SAMPLES)
+        return CLOCK() - t0
+
+    def nstep():
+        t0 = CLOCK()
+        for i in range(SAMPLES):
+            step(m, d, K)
+            get(m, d, rows_[i], spec)
+        return CLOCK() - t0
+
+    def compiled():
+        t0 = CLOCK()
+        native.mujoco_record(address, m._address, d._address, d.qpos, d.qvel,
+                             d.warning.number, K, qpos, qvel)
+        return CLOCK() - t0
+
+    def reset():
+        mujoco.mj_setState(m, d, init, spec)
+
+    t = _min_interleaved({"bare": bare, "nstep": nstep, "compiled": compiled}, budget, reset)
+    step_s = t["bare"] / (K * SAMPLES)
+    return [
+        _floor_row("mujoco", "compiled loop: mj_step x k, qpos/qvel copied (adapter, euler)", n,
+                   step_s, 0, (t["compiled"] - t["bare"]) / SAMPLES),
+        _floor_row("mujoco", "python: mj_step(m, d, k) + mj_getState per sample (euler)", n,
+                   step_s, 2, (t["nstep"] - t["bare"]) / SAMPLES),
+    ]
+
+
+FLOORS: dict[str, Callable[[int, float], list[dict]]] = {
+    "mujoco": floors_mujoco,
+    "pybullet": floors_pybullet,
+    "pymunk": floors_pymunk,
+}
+
+
+def _predicted(floor_rows: list[dict], engine: str, integrator: str, n: int, k: int
+               ) -> float | None:
+    """The adapter path's floor at k steps per sample (reads / stepping; conversion aside)."""
+    for row in floor_rows:
+        if row["engine"] != engine or row["bodies"] != n:
+            continue
+        if row["path"].startswith(integrator + ":") or "(adapter" in row["path"]:
+            return row["per_sample_us"] / (k * row["step_us"])
+    return None
+
+
+# -- sweeps: sparser sampling, more bodies ----------------------------------------------------
+SWEEP_INTEGRATORS = {"mujoco": ("euler",), "pybullet": ("multibody", "maximal"),
+                     "pymunk": ("position_first",)}
+SWEEP_K = (10, 20, 50, 100)
+SWEEP_N = (1, 10, 100)
+SWEEP_DURATION = 5.0
+
+
+def sweeps(engine, budget: float, floor_rows: list[dict]) -> list[dict]:
+    name = engine.name
+    dim = 3 if 3 in engine.capabilities().dimensions else 2
+    rows = []
+    for integrator in SWEEP_INTEGRATORS.get(name, (engine.capabilities().default_integrator,)):
+        # 5 s (1 s for 100 bodies): long enough that the run's fixed costs (build, settings
+        # read-back, ~2 ms for PyBullet) do not drown the difference being measured.
+        runs = [("sampling", 1, k, many_bodies(1, dim, k, SWEEP_DURATION)) for k in SWEEP_K]
+        runs += [("bodies", n, K, many_bodies(n, dim, K, SWEEP_DURATION if n < 100 else 1.0))
+                 for n in SWEEP_N if n > 1]
+        for kind, n, k, scene in runs:
+            row = {"engine": name, "integrator": integrator, "sweep": kind, "bodies": n,
+                   "steps_per_sample": k}
+            row |= measure(engine, scene, integrator, budget, 5, 1000)
+            row["floor"] = _predicted(floor_rows, name, integrator, n, k)
+            rows.append(row)
+            print(f"{name:9s} {integrator:14s} N={n:<3d} k={k:<3d} overhead "
+                  f"{row.get('overhead', float('nan')):+.1%}", file=sys.stderr)
+    return rows
+
+
 def _verdict(row: dict) -> str:
     value = (row["overhead"] if row["overhead"] is not None
              else row["in_run_recording_over_stepping_median"])
@@ -230,51 +584,117 @@ def machine() -> dict:
     return info
 
 
+def _pct(x) -> str:
+    return "-" if x is None else f"{x:+.1%}"
+
+
 def markdown(result: dict) -> str:
     lines = [
         "# Recording overhead",
         "",
-        "Bare stepping (the adapter's model advanced through every step with nothing read) "
-        "against `engine.run` stepping with recording at the case's sampling interval. The "
-        "recorded loop is the CPU time of a full `run` minus that of a one-sample `run` of the "
-        "same case, which cancels model build and settings read-back and keeps stepping in "
-        "chunks, per-sample copies and the conversion of every sample. Thread CPU time, minimum "
-        "of interleaved repeats (the machine is shared; wall time measured the scheduler). "
-        f"Target: overhead below {TARGET:.0%}. Produced by `benchmarks/bench_overhead.py`.",
+        "Bare stepping (the adapter's model advanced through every step with nothing read, by "
+        "the fastest stepping loop the adapter itself uses) against `engine.run` stepping with "
+        "recording at the case's sampling interval. The recorded loop is the CPU time of a full "
+        "`run` minus that of a one-sample `run` of the same case, which cancels model build and "
+        "settings read-back and keeps stepping between samples, per-sample reads and the "
+        "conversion of every sample. Thread CPU time, minimum of interleaved repeats (the "
+        "machine is shared; wall time measured the scheduler). "
+        f"Target: overhead below {TARGET:.0%}. Produced by `benchmarks/bench_overhead.py`; "
+        "docs/engines.md explains each engine's recorder.",
         "",
         f"Machine: {result['machine']['platform']}, {result['machine']['cpus']} CPUs, "
         f"Python {result['machine']['python']}; {result['date']}. Engines: "
         + ", ".join(f"{k} {v}" for k, v in result["versions"].items()) + ".",
         "",
+        "## The cases",
+        "",
         "| engine | case | integrator | steps | samples | repeats | bare ms | recorded loop ms "
-        "| overhead | per sample | in-run recording / stepping | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| overhead | per sample | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in result["rows"]:
         if "error" in row or "not_applicable" in row:
             why = row.get("error") or "not applicable: " + row["not_applicable"]
             lines.append(f"| {row['engine']} | {row['case']} | {row['integrator']} | | | | | "
-                         f"| | | | {why} |")
+                         f"| | | {why} |")
             continue
-        bare = f"{row['bare_cpu_min_s'] * 1e3:.2f}" if "bare_cpu_min_s" in row else "-"
-        overhead = (f"{row['overhead']:+.1%}" if row["overhead"] is not None
-                    else f"({row['in_run_recording_over_stepping_median']:.1%} of stepping, "
-                         "in-run wall)")
-        per_sample = (f"{row['overhead_per_sample_us']:.2f} us"
-                      if row.get("overhead_per_sample_us") is not None else "-")
         lines.append(
             f"| {row['engine']} | {row['case']} | {row['integrator']} | {row['steps']} | "
-            f"{row['samples']} | {row['repeats']} | {bare} | {row['loop_cpu_s'] * 1e3:.2f} | "
-            f"{overhead} | {per_sample} | {row['in_run_recording_over_stepping_median']:.1%} | "
-            f"{row['verdict']} |")
-    lines += ["", "The overhead includes stepping in chunks of `steps_per_sample` (one engine "
-              "call per sample instead of one for the run) as well as the copies and the "
-              "conversion; \"per sample\" spreads it over the recorded samples (it also holds "
-              "per-run costs that a one-sample run skips, which weigh most in the 1 s cases). "
-              "\"In-run\" is the ratio the adapter itself reports in its Trajectory "
-              "(`wall_time_recording / wall_time`, wall clock, median): it leaves out the cost "
-              "of stepping in chunks. A `(stepping=nstep)` row is MuJoCo's alternative "
-              "recorder. JSON: every figure.", ""]
+            f"{row['samples']} | {row['repeats']} | {row['bare_cpu_min_s'] * 1e3:.3f} | "
+            f"{row['loop_cpu_s'] * 1e3:.3f} | {_pct(row['overhead'])} | "
+            f"{row['overhead_per_sample_us']:.2f} us | {row['verdict']} |")
+    lines += ["", "\"Per sample\" spreads the overhead over the recorded samples (it also "
+              "holds per-run costs a one-sample run skips, such as converting many samples "
+              "instead of one). `(stepping=...)` rows are MuJoCo's alternative recorders, kept "
+              "as engine options. Pymunk is 2D only: its case is the 2D free flight.", ""]
+
+    floors = result.get("floors") or []
+    if floors:
+        lines += [
+            "## Floors: what one sample costs against the steps between two samples",
+            "",
+            f"Each cost is measured in context: {SAMPLES} samples of k = {K} steps of N "
+            "free-flying bodies (the free-flight body, dt = 1e-3), once with and once without "
+            "the reads; the difference per sample is the reads' cost (per call: divided by the "
+            "calls). floor = per-sample cost / (k x per-step cost): the overhead no recorder on "
+            "that path can go below (the Trajectory conversion comes on top). \"k for 10 %\" "
+            "is the smallest number of steps per sample at which the floor is under 10 %.",
+            "",
+            "| engine | path | N | per step us | calls per sample | per call us | per sample us "
+            "| floor at k = 10 | k for 10 % | note |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in floors:
+            per_call = "-" if r["per_call_us"] is None else f"{r['per_call_us']:.2f}"
+            lines.append(
+                f"| {r['engine']} | {r['path']} | {r['bodies']} | {r['step_us']:.3f} | "
+                f"{r['calls_per_sample']} | {per_call} | {r['per_sample_us']:.2f} | "
+                f"{r['floor_at_k10']:.1%} | {r['k_for_10pct']} | {r['note']} |")
+        lines.append("")
+    substeps = result.get("pybullet_substeps") or []
+    if substeps:
+        lines += [
+            f"PyBullet's `numSubSteps = {K}` (fixedTimeStep = {K} dt, one `stepSimulation` per "
+            "sample), measured but not used by the adapter (docs/engines.md: Bullet decides "
+            "the number of substeps per call from an internal time accumulator that PyBullet "
+            "does not report, so a dropped step would go unnoticed):",
+            "",
+            "| integrator | per step, single steps us | per step, substeps us | bit-identical "
+            "on free flight |",
+            "|---|---|---|---|",
+        ]
+        for r in substeps:
+            lines.append(f"| {r['integrator']} | {r['step_us_single']:.3f} | "
+                         f"{r['step_us_substeps']:.3f} | {r['bit_identical_on_free_flight']} |")
+        lines += ["", "With substeps the bare loop would be that much faster and the reads, "
+                  "unchanged, a larger fraction of it: the floor at k = 10 rises accordingly.",
+                  ""]
+
+    sweep_rows = result.get("sweeps") or []
+    if sweep_rows:
+        lines += [
+            "## Sparser sampling and more bodies (measured)",
+            "",
+            f"The full overhead (as in the first table) of N free-flying bodies for "
+            f"{SWEEP_DURATION:g} s (1 s for 100 bodies) at dt = 1e-3, sampled every k steps; "
+            "\"floor\" is the prediction from the floors table (reads only).",
+            "",
+            "| engine | integrator | N | k | steps | samples | bare ms | recorded loop ms | "
+            "overhead | floor | verdict |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in sweep_rows:
+            if "error" in r:
+                lines.append(f"| {r['engine']} | {r['integrator']} | {r['bodies']} | "
+                             f"{r['steps_per_sample']} | | | | | | | {r['error']} |")
+                continue
+            lines.append(
+                f"| {r['engine']} | {r['integrator']} | {r['bodies']} | "
+                f"{r['steps_per_sample']} | {r['steps']} | {r['samples']} | "
+                f"{r['bare_cpu_min_s'] * 1e3:.3f} | {r['loop_cpu_s'] * 1e3:.3f} | "
+                f"{_pct(r['overhead'])} | {_pct(r['floor'])} | {r['verdict']} |")
+        lines.append("")
+    lines += ["JSON (overhead.json): every figure, including medians and repeat counts.", ""]
     return "\n".join(lines)
 
 
@@ -287,11 +707,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds of repeats per engine, case and integrator")
     parser.add_argument("--min-repeats", type=int, default=5)
     parser.add_argument("--max-repeats", type=int, default=1000)
+    parser.add_argument("--no-floors", action="store_true", help="skip the per-call floors")
+    parser.add_argument("--no-sweeps", action="store_true",
+                        help="skip the sampling-interval and body-count sweeps")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
     parser.add_argument("--name", default="overhead", help="output file stem")
     args = parser.parse_args(argv)
 
-    rows, versions = [], {}
+    rows, versions, floor_rows, substeps, sweep_rows = [], {}, [], [], []
     for name in [n.strip() for n in args.engines.split(",") if n.strip()]:
         try:
             engine = get_engine(name)
@@ -323,8 +746,16 @@ def main(argv: list[str] | None = None) -> int:
                          else row.get("error", "in-run only"))
                 print(f"{name:9s} {scene.name:15s} {base['integrator']:24s} overhead {shown}",
                       file=sys.stderr)
+        if not args.no_floors and name in FLOORS:
+            for n in SWEEP_N:
+                floor_rows += FLOORS[name](n, args.budget)
+            if name == "pybullet":
+                substeps = substeps_pybullet(args.budget)
+        if not args.no_sweeps:
+            sweep_rows += sweeps(engine, args.budget / 2, floor_rows)
     result = {"benchmark": "recording overhead", "target": TARGET, "machine": machine(),
-              "versions": versions, "rows": rows,
+              "versions": versions, "rows": rows, "floors": floor_rows,
+              "pybullet_substeps": substeps, "sweeps": sweep_rows,
               "date": time.strftime("%Y-%m-%d %H:%M:%S %z")}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"{args.name}.json").write_text(json.dumps(result, indent=1) + "\n")

@@ -53,6 +53,7 @@ damping and drag. PyBullet clears applied forces after every step.
 
 from __future__ import annotations
 
+import functools
 import importlib.metadata
 import math
 import time
@@ -839,13 +840,7 @@ class PybulletEngine(EngineBase):
         )
 
     def version(self) -> str:
-        if _p is None:  # pragma: no cover
-            return "not installed"
-        try:
-            dist = importlib.metadata.version("pybullet")
-        except importlib.metadata.PackageNotFoundError:  # pragma: no cover
-            dist = "unknown"
-        return f"{dist} (API {_p.getAPIVersion()})"
+        return _version()
 
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if _p is None:  # pragma: no cover
@@ -915,6 +910,18 @@ class PybulletEngine(EngineBase):
         traj.meta["wall_time"] = stepping
         traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
         return traj
+
+
+@functools.lru_cache(maxsize=1)
+def _version() -> str:
+    """Once per process: the package metadata lookup costs ~150 us, every run records it."""
+    if _p is None:  # pragma: no cover
+        return "not installed"
+    try:
+        dist = importlib.metadata.version("pybullet")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover
+        dist = "unknown"
+    return f"{dist} (API {_p.getAPIVersion()})"
 
 
 def _finish(plan: SamplingPlan, scene: Scene, t, com, rot, vel, omega, meta, extras,
