@@ -74,3 +74,22 @@ def test_sweep_command_finds_the_largest_stable_step(tmp_path):
     assert series["euler"]["order"] == pytest.approx(1.0, abs=1e-6)
     assert (tmp_path / "sw" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
     assert "largest stable dt" in (tmp_path / "sw" / "sweep.md").read_text()
+
+
+def test_sweep_skips_metrics_that_cannot_tell_integrators_apart():
+    # A torque-free body: the centre of mass never moves (position error exactly 0 at every
+    # step), the analytic reference gives no orientation (NaN), and the case limits the flip
+    # period. The sweep must plot the flip period, whose error does change with the step.
+    from crosscheck.study.sweep import analyse, pick_metric
+
+    def cell(dt, flip):
+        return {"engine": "x", "integrator": "y", "dt": dt, "status": "pass", "cost": 1e-3,
+                "metrics": {"position_error_max": {"value": 0.0, "limit": None},
+                            "orientation_error_max": {"value": float("nan"), "limit": None},
+                            "flip_period_error": {"value": flip, "limit": 1e-3},
+                            "energy_drift": {"value": 1e-3 * dt, "limit": 1e-2}}}
+
+    cells = [cell(2e-3, 4e-4), cell(1e-3, 1e-4), cell(5e-4, 2.5e-5)]
+    assert pick_metric(cells) == "flip_period_error"
+    metric, (series,) = analyse(cells)
+    assert abs(series.order - 2.0) < 1e-9  # error ~ dt^2 across the three steps

@@ -3,9 +3,10 @@
 From the cells of one case run at steps ``dt_1 > dt_2 > ...`` (the ordinary runner, so every
 cell is isolated and judged as usual), per engine and integrator:
 
-* **error** at each step: the chosen metric (default the first available of
-  ``position_error_max``, ``orientation_error_max``, ``energy_drift``), against the case's
-  reference;
+* **error** at each step: the chosen metric (``--metric``; by default the first of
+  :data:`DEFAULT_METRICS`, then the metrics the case sets limits on, that is *informative*: above
+  :data:`ERROR_FLOOR` in some stable cell. A torque-free body's centre of mass never moves, so
+  its position error is zero at every step and says nothing about the integrators);
 * **cost**: wall seconds of stepping per simulated second;
 * **empirical order of convergence**: the least-squares slope ``p`` of ``log(error)`` against
   ``log(dt)`` over the steps that stayed stable and whose error lies above the round-off floor
@@ -28,7 +29,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 ERROR_FLOOR = 1e-13
-DEFAULT_METRICS = ("position_error_max", "orientation_error_max", "energy_drift")
+DEFAULT_METRICS = ("position_error_max", "orientation_error_max", "angular_velocity_error_max",
+                   "velocity_error_max")
+CONSERVATION_METRICS = ("energy_drift", "angular_momentum_drift", "linear_momentum_drift")
 UNSTABLE = frozenset({"blowup", "error", "timeout"})
 
 
@@ -54,12 +57,32 @@ class Series:
 
 
 def pick_metric(cells: list[dict[str, Any]], wanted: str | None = None) -> str | None:
+    """The metric a sweep plots: ``wanted``, else the first informative candidate.
+
+    Candidates, in order: errors against the reference (:data:`DEFAULT_METRICS`), the other
+    metrics the case sets limits on (e.g. ``flip_period_error``), then conservation drifts.
+    """
     if wanted:
         return wanted
-    for name in DEFAULT_METRICS:
-        if any((c.get("metrics") or {}).get(name, {}).get("value") is not None for c in cells):
+    limited = sorted({n for c in cells for n, m in (c.get("metrics") or {}).items()
+                      if m.get("limit") is not None and n not in CONSERVATION_METRICS})
+    candidates = [*DEFAULT_METRICS, *[n for n in limited if n not in DEFAULT_METRICS],
+                  *CONSERVATION_METRICS]
+
+    def values(name: str) -> list[float]:
+        out = []
+        for c in cells:
+            if c.get("status") in UNSTABLE:
+                continue
+            v = (c.get("metrics") or {}).get(name, {}).get("value")
+            if isinstance(v, int | float) and math.isfinite(v):
+                out.append(v)
+        return out
+
+    for name in candidates:
+        if any(v > ERROR_FLOOR for v in values(name)):
             return name
-    return None
+    return next((name for name in candidates if values(name)), None)
 
 
 def fit_order(dts: list[float], errors: list[float]) -> float | None:
@@ -175,6 +198,13 @@ def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
     return buf.getvalue()
 
 
+def _stable(largest: float | None, dts: list[float]) -> str:
+    if largest is None:
+        return "none"
+    # Stable at the largest step swept: the frontier lies beyond the sweep.
+    return f">= {largest:g}" if dts and largest == dts[0] else f"{largest:g}"
+
+
 def table(metric: str | None, series: list[Series]) -> str:
     """Markdown: per engine and integrator the errors per step, order, largest stable step."""
     dts = sorted({d for s in series for d in s.dts}, reverse=True)
@@ -194,6 +224,6 @@ def table(metric: str | None, series: list[Series]) -> str:
         pw = ", ".join("-" if p is None else f"{p:.2f}" for p in s.pairwise)
         lines.append(f"| {s.label} | " + " | ".join(cells)
                      + f" | {'' if s.order is None else f'{s.order:.2f}'} | {pw} | "
-                     + f"{'none' if s.largest_stable_dt is None else f'{s.largest_stable_dt:g}'}"
+                     + _stable(s.largest_stable_dt, dts)
                      + " |")
     return "\n".join(lines)
