@@ -130,22 +130,28 @@ def accuracy_metric(cells: list[dict[str, Any]]) -> str | None:
     return None
 
 
+def log_axes(ax) -> None:
+    """Both axes logarithmic, labelled only at 1, 2 and 5 times a power of ten.
+
+    Matplotlib labels minor ticks when a span is under a decade, and those overprint each other.
+    """
+    from matplotlib import ticker
+
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False))
+        axis.set_minor_formatter(ticker.NullFormatter())
+
+
 def _cost_panel(ax, cells, metric, multi_dt):
     for c in cells:
         value = max(_value(c, metric), FLOOR)
         ax.scatter([c["cost"]], [value], color=ENGINE_COLORS.get(c["engine"], "#555"), s=18)
         ax.annotate(_label(c, multi_dt), (c["cost"], value), fontsize=6, xytext=(3, 2),
                     textcoords="offset points")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    # Spans under a decade get labelled minor ticks that overprint each other: label only
-    # 1, 2 and 5 times a power of ten.
-    from matplotlib import ticker
-
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False))
-        axis.set_minor_formatter(ticker.NullFormatter())
+    log_axes(ax)
     ax.set_xlabel("cost: wall s per simulated s", fontsize=8)
     ax.set_ylabel(metric or "", fontsize=7)
     ax.tick_params(labelsize=7)

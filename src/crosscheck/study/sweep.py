@@ -153,7 +153,7 @@ def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 
-    from crosscheck.report.plots import ENGINE_COLORS, FLOOR, STYLES
+    from crosscheck.report.plots import ENGINE_COLORS, FLOOR, STYLES, log_axes
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12.5, 4.6))
     markers = "osD^v<>ph"
@@ -180,8 +180,7 @@ def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
         ax1.plot([p[2] for p in front], [max(p[3], FLOOR) for p in front], color="k",
                  linewidth=2.5, alpha=0.25, label="Pareto front")
     for ax, xlabel in ((ax1, "cost: wall s per simulated s"), (ax2, "dt (s)")):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_axes(ax)
         ax.set_xlabel(xlabel, fontsize=8)
         ax.set_ylabel(metric or "error", fontsize=8)
         ax.grid(True, alpha=0.3)
