@@ -15,6 +15,7 @@ change; docs/reports.md documents every field)::
             status (pass|fail|blowup|error|timeout|not_applicable), reason,
             metrics {name: {value, limit, passed, meaningful, note, unit, value_text}},
             worst {metric, value, limit, ratio}, cost (wall s per simulated s),
+            cost_vs_mujoco (cost / MuJoCo's cost in the same run, see mujoco_cost_ratios),
             wall_time, simulated_time, cell_seconds, failure, end_state, reference_end,
             regression [..], trajectory_file, plots, peak_rss_mb}],
     not_run [cell ids], counts {status: n},
@@ -121,9 +122,39 @@ def engine_versions(cells: list[dict[str, Any]]) -> dict[str, str]:
     return dict(sorted(out.items()))
 
 
+MUJOCO_DEFAULT_INTEGRATOR = "euler"
+
+
+def mujoco_cost_ratios(cells: list[dict[str, Any]]) -> dict[str, float]:
+    """Cell id -> its cost divided by MuJoCo's cost measured in the same run.
+
+    The MuJoCo cell compared with is the one of the same case and step with the same integrator
+    name if MuJoCo ran it (rk4 against rk4), else MuJoCo's default integrator (euler), else the
+    first MuJoCo cell of that case and step. Cells of a case and step MuJoCo did not run (fluid
+    scenes, for one) get no ratio. Costs measured in one run share the machine and its load, so
+    the ratio travels between machines far better than the seconds do.
+    """
+    mujoco: dict[tuple[str, float], dict[str, float]] = {}
+    for c in cells:
+        if c.get("engine") == "mujoco" and (c.get("cost") or 0) > 0:
+            mujoco.setdefault((c["case"], c["dt"]), {})[c["integrator"]] = c["cost"]
+    out: dict[str, float] = {}
+    for c in cells:
+        peers = mujoco.get((c.get("case"), c.get("dt")))
+        cost = c.get("cost") or 0
+        if not peers or cost <= 0:
+            continue
+        ref = (peers.get(c["integrator"]) or peers.get(MUJOCO_DEFAULT_INTEGRATOR)
+               or next(iter(peers.values())))
+        out[c["id"]] = cost / ref
+    return out
+
+
 def render(doc: dict[str, Any]) -> str:
     body = dict(doc)
-    body["cells"] = [light(c) for c in doc.get("cells", [])]
+    ratios = mujoco_cost_ratios(doc.get("cells", []))
+    body["cells"] = [dict(light(c), cost_vs_mujoco=ratios.get(c.get("id")))
+                     for c in doc.get("cells", [])]
     return json.dumps(clean(body), indent=1) + "\n"
 
 

@@ -1,0 +1,24 @@
+"""Cost is reported as a ratio against MuJoCo measured in the same run (the project's speed
+standard); the pairing rule decides which MuJoCo cell a ratio divides by."""
+
+from crosscheck.report.results import mujoco_cost_ratios
+
+
+def _cell(case, engine, integrator, dt, cost):
+    return {"id": f"{case}:{engine}-{integrator}@{dt}", "case": case, "engine": engine,
+            "integrator": integrator, "dt": dt, "cost": cost}
+
+
+def test_pairs_same_integrator_then_mujoco_default_and_never_across_steps_or_cases():
+    cells = [
+        _cell("a", "mujoco", "rk4", 1e-3, 0.04), _cell("a", "mujoco", "euler", 1e-3, 0.01),
+        _cell("a", "inhouse", "rk4", 1e-3, 0.004),           # vs MuJoCo rk4: 0.1
+        _cell("a", "pybullet", "multibody", 1e-3, 0.02),    # vs MuJoCo euler (default): 2
+        _cell("a", "inhouse", "rk4", 5e-4, 0.008),           # MuJoCo did not run this step
+        _cell("fluid", "inhouse", "semi_lagrangian", 1e-3, 1.0),  # MuJoCo does not run fluids
+    ]
+    r = mujoco_cost_ratios(cells)
+    assert r["a:inhouse-rk4@0.001"] == 0.004 / 0.04
+    assert r["a:pybullet-multibody@0.001"] == 0.02 / 0.01
+    assert r["a:mujoco-rk4@0.001"] == 1.0
+    assert "a:inhouse-rk4@0.0005" not in r and "fluid:inhouse-semi_lagrangian@0.001" not in r
