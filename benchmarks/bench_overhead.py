@@ -427,7 +427,8 @@ def floors_pymunk(n: int, budget: float) -> list[dict]:
     handle = model.space._space
     cstep, read_raw, space_step = _cp.cpSpaceStep, model.read_raw, model.space.step
     steps = range(K)
-    out = np.empty((SAMPLES + 1, n, 6))
+    com, angle = np.empty((SAMPLES + 1, n, 2)), np.empty((SAMPLES + 1, n))
+    vel, omega = np.empty((SAMPLES + 1, n, 2)), np.empty((SAMPLES + 1, n))
 
     def compiled_bare():
         t0 = CLOCK()
@@ -436,7 +437,7 @@ def floors_pymunk(n: int, budget: float) -> list[dict]:
 
     def compiled_rec():
         t0 = CLOCK()
-        native.chipmunk_record(fns, space, dt, K, bodies, cogs, out)
+        native.chipmunk_record(fns, space, dt, K, bodies, cogs, com, angle, vel, omega)
         return CLOCK() - t0
 
     def cffi_bare():

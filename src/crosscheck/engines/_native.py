@@ -134,38 +134,38 @@ def chipmunk_step(step, space, dt, nsteps):
 
 
 @njit(cache=True, nogil=True)
-def chipmunk_read(fns, bodies, cogs, row):
-    """row[j] = (centre of mass x, y, angle, velocity x, y, angular velocity) of body j: the
-    getters ``PymunkModel.read_raw`` calls, in the same order."""
-    _, to_world, velocity, angle, spin = fns
+def chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, i):
+    """Sample i of every body j: com[i, j] (centre of mass), angle[i, j], vel[i, j] (centre of
+    mass velocity), omega[i, j]: the getters ``PymunkModel.read_raw`` calls, in its order."""
+    _, to_world, velocity, get_angle, spin = fns
     for j in range(bodies.shape[0]):
         b = bodies[j]
         cx, cy = call_v2_pv2(to_world, b, cogs[j, 0], cogs[j, 1])
         vx, vy = call_v2_p(velocity, b)
-        row[j, 0] = cx
-        row[j, 1] = cy
-        row[j, 2] = call_d_p(angle, b)
-        row[j, 3] = vx
-        row[j, 4] = vy
-        row[j, 5] = call_d_p(spin, b)
+        com[i, j, 0] = cx
+        com[i, j, 1] = cy
+        angle[i, j] = call_d_p(get_angle, b)
+        vel[i, j, 0] = vx
+        vel[i, j, 1] = vy
+        omega[i, j] = call_d_p(spin, b)
 
 
 @njit(cache=True, nogil=True)
-def chipmunk_record(fns, space, dt, k, bodies, cogs, out):
-    """Sample 0 is read; then k steps and a read per sample. Returns the number of samples
-    written before the first one holding a non-finite value (that one is written too)."""
+def chipmunk_record(fns, space, dt, k, bodies, cogs, com, angle, vel, omega):
+    """Sample 0 is read; then k steps and a read per sample, straight into the Trajectory's
+    arrays. Returns the number of samples before the first one holding a non-finite value."""
     step = fns[0]
-    chipmunk_read(fns, bodies, cogs, out[0])
-    for i in range(1, out.shape[0]):
+    chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, 0)
+    for i in range(1, com.shape[0]):
         for _ in range(k):
             call_v_pd(step, space, dt)
-        row = out[i]
-        chipmunk_read(fns, bodies, cogs, row)
-        for j in range(row.shape[0]):
-            for c in range(row.shape[1]):
-                if not np.isfinite(row[j, c]):
-                    return i
-    return out.shape[0]
+        chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, i)
+        for j in range(bodies.shape[0]):
+            if not (np.isfinite(com[i, j, 0]) and np.isfinite(com[i, j, 1])
+                    and np.isfinite(angle[i, j]) and np.isfinite(vel[i, j, 0])
+                    and np.isfinite(vel[i, j, 1]) and np.isfinite(omega[i, j])):
+                return i
+    return com.shape[0]
 
 
 # -- MuJoCo -------------------------------------------------------------------------------------

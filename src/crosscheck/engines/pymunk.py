@@ -57,7 +57,7 @@ import numpy as np
 from crosscheck.engines.base import Capabilities, EngineBase, SamplingPlan, sampling_plan
 from crosscheck.errors import CaseError, EngineUnavailable
 from crosscheck.scene.model import Scene
-from crosscheck.state import Trajectory, TrajectoryRecorder
+from crosscheck.state import Trajectory
 
 try:  # a missing or broken pymunk makes this engine "not applicable", not an import error
     import pymunk as _pm
@@ -199,12 +199,15 @@ class PymunkModel:
             "cpBodyGetAngularVelocity"))
         bodies = np.array([address(b._body) for b in self.bodies], dtype=np.uintp)
         cogs = np.array([cog for _, cog in self._handles], float).reshape(-1, 2)
-        row = np.empty((len(self.bodies), 6))
+        n = len(self.bodies)
+        com, angle, vel, omega = np.empty((1, n, 2)), np.empty((1, n)), np.empty((1, n, 2)), \
+            np.empty((1, n))
         try:
-            _native.chipmunk_read(fns, bodies, cogs, row)
+            _native.chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, 0)
         except Exception as exc:  # pragma: no cover - a numba failure falls back to Python
             return None, f"compiled reader failed ({type(exc).__name__}: {exc})"
-        expected = np.array(self.read_raw(), float).reshape(row.shape)
+        row = np.concatenate([com[0], angle[0, :, None], vel[0], omega[0, :, None]], axis=1)
+        expected = np.array(self.read_raw(), float).reshape(n, 6)
         if not np.array_equal(row.view(np.uint64), expected.view(np.uint64)):
             return None, "compiled reader differs from the C getters called from Python"
         space = address(self.space._space)
@@ -273,20 +276,25 @@ class PymunkModel:
                else f"compiled loop unavailable: {self.native_reason}")
         return f"python loop, cpSpaceStep and the C getters through cffi ({why})"
 
-    def record(self, n_samples: int, k: int) -> tuple[np.ndarray, int, float]:
+    def record(self, n_samples: int, k: int) -> tuple[tuple[np.ndarray, ...], int, float]:
         """Sample the current state, then k steps and a sample, n_samples - 1 times.
 
-        Returns (raw (n_samples, N, 6) rows as read_raw's, number of valid samples, seconds
-        spent stepping). The samples from the first non-finite one on are invalid.
+        Returns ((com (n_samples, N, 2), angle (n_samples, N), vel (n_samples, N, 2), omega
+        (n_samples, N)), number of valid samples, seconds spent stepping): the Trajectory's own
+        arrays, written in place by the compiled loop (each array is allocated once: with many
+        bodies, fresh trajectory-sized buffers and copies cost more than Chipmunk's steps).
+        The samples from the first non-finite one on are invalid.
         """
         clock = time.perf_counter
         n = len(self.bodies)
+        com, angle = np.empty((n_samples, n, 2)), np.empty((n_samples, n))
+        vel, omega = np.empty((n_samples, n, 2)), np.empty((n_samples, n))
         if self.compiled:
             native, fns, space, bodies, cogs = self.native
-            out = np.empty((n_samples, n, 6))
             t0 = clock()
-            count = native.chipmunk_record(fns, space, self.dt, k, bodies, cogs, out)
-            return out, count, clock() - t0
+            count = native.chipmunk_record(fns, space, self.dt, k, bodies, cogs, com, angle,
+                                           vel, omega)
+            return (com, angle, vel, omega), count, clock() - t0
         rows = [self.read_raw()]
         stepping = 0.0
         advance, read = self.advance, self.read_raw
@@ -299,9 +307,10 @@ class PymunkModel:
                 break
             rows.append(row)
         count = len(rows)
-        out = np.empty((n_samples, n, 6))
-        out[:count] = np.array(rows, float).reshape(count, n, 6)
-        return out, count, stepping
+        raw = np.array(rows, float).reshape(count, n, 6)
+        com[:count], angle[:count] = raw[..., 0:2], raw[..., 2]
+        vel[:count], omega[:count] = raw[..., 3:5], raw[..., 5]
+        return (com, angle, vel, omega), count, stepping
 
     def effective(self) -> tuple[dict[str, Any], list[str]]:
         """Settings read back from the Space, bodies and springs, and mismatches with the scene."""
@@ -399,39 +408,34 @@ class PymunkEngine(EngineBase):
         if problems:
             failure: dict | None = {"time": 0.0,
                                     "reason": "pymunk settings: " + "; ".join(problems)}
-            raw, count, stepping = model.record(1, plan.steps_per_sample)
+            arrays, count, stepping = model.record(1, plan.steps_per_sample)
         else:
             failure = None
-            raw, count, stepping = model.record(plan.n_samples, plan.steps_per_sample)
+            arrays, count, stepping = model.record(plan.n_samples, plan.steps_per_sample)
             if count < plan.n_samples:
-                failure = {"time": plan.time(count), "reason": "non-finite state"}
+                failure = {"time": float(plan.time(count)), "reason": "non-finite state"}
         loop = clock() - start
         t_conv = clock()
         meta = self.base_meta(scene, integrator, dt)
         meta["effective"] = effective
-        traj = _finish(plan, scene, raw[:count], meta, failure)
+        traj = _finish(plan, count, arrays, meta, failure)
         traj.meta["wall_time"] = stepping
         traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
         return traj
 
 
-def _finish(plan: SamplingPlan, scene: Scene, raw: np.ndarray, meta: dict, failure
-            ) -> Trajectory:
-    """Recorder filled with the samples; angles kept as Chipmunk gave them.
+def _finish(plan: SamplingPlan, count: int, arrays: tuple[np.ndarray, ...], meta: dict,
+            failure: dict | None) -> Trajectory:
+    """The Trajectory of the first ``count`` samples, on the arrays the loop wrote.
 
-    ``TrajectoryRecorder.finish`` applies ``np.unwrap``, which would undo a true turn of more
-    than half a revolution between samples; Chipmunk's angle is already continuous.
+    Built directly rather than through ``TrajectoryRecorder`` (whose buffers and ``finish``
+    copies would allocate every array twice more) with what ``finish`` puts in: ``t`` the
+    sample times, ``meta["failure"]``, and the angle as Chipmunk gave it (continuous, never
+    wrapped or unwrapped: an unwrap would undo a true turn of more than half a revolution
+    between samples).
     """
-    count = len(raw)
-    rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), 2)
-    rec.t[:count] = np.arange(count) * plan.steps_per_sample * plan.dt
-    rec.com[:count] = raw[..., 0:2]
-    rec.rot[:count] = raw[..., 2]
-    rec.vel[:count] = raw[..., 3:5]
-    rec.omega[:count] = raw[..., 5]
-    rec.count = count
-    if failure is not None:
-        rec.fail(failure["time"], failure["reason"])
-    traj = rec.finish(meta)
-    traj.angle = raw[..., 2].copy()
-    return traj
+    com, angle, vel, omega = (a[:count] for a in arrays)
+    meta = dict(meta)
+    meta["failure"] = failure
+    t = np.arange(count) * plan.steps_per_sample * plan.dt
+    return Trajectory(t=t, com=com, vel=vel, omega=omega, angle=angle, meta=meta)
