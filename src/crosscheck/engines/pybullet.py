@@ -1,8 +1,7 @@
 """PyBullet adapter: one DIRECT client per run, every body built from the Scene.
 
-Model (docs/engines_pybullet_pymunk.md, section PyBullet, has the measurements behind each
-choice; it moves into docs/engines.md once that page exists)
----------------------------------------------------------------------------------------------
+Model (docs/engines.md, section PyBullet, has the measurements behind each choice)
+----------------------------------------------------------------------------------
 * A 3D body is the base of its own ``createMultiBody``: the link frame is the declared body frame
   (``basePosition`` / ``baseOrientation``), the inertial frame sits at ``Body.com`` with the
   orientation of the principal axes ``V`` (``I_body = V diag(moments) V^T``, ``det V = +1``), and
