@@ -33,19 +33,27 @@ INLINE = dict(JIT, inline="always")
 
 # -- small vector helpers (scalars in, tuples out: no allocation) ------------------------------
 @njit(**INLINE)
-def rotation_from_quat(q, i, R):
-    """R[i] = R(q[i] / |q[i]|): valid for a quaternion slightly off unit length (RK stages)."""
-    w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+def quat_to_rotation(w, x, y, z):
+    """R(q / |q|) row-major (r00, r01, ..., r22): valid for a quaternion slightly off unit length
+    (RK stages)."""
     s = 2.0 / (w * w + x * x + y * y + z * z)
-    R[i, 0, 0] = 1.0 - s * (y * y + z * z)
-    R[i, 0, 1] = s * (x * y - w * z)
-    R[i, 0, 2] = s * (x * z + w * y)
-    R[i, 1, 0] = s * (x * y + w * z)
-    R[i, 1, 1] = 1.0 - s * (x * x + z * z)
-    R[i, 1, 2] = s * (y * z - w * x)
-    R[i, 2, 0] = s * (x * z - w * y)
-    R[i, 2, 1] = s * (y * z + w * x)
-    R[i, 2, 2] = 1.0 - s * (x * x + y * y)
+    return (1.0 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y),
+            s * (x * y + w * z), 1.0 - s * (x * x + z * z), s * (y * z - w * x),
+            s * (x * z - w * y), s * (y * z + w * x), 1.0 - s * (x * x + y * y))
+
+
+@njit(**INLINE)
+def transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22, a0, a1, a2):
+    """R^T a (a world vector in the body frame)."""
+    return (r00 * a0 + r10 * a1 + r20 * a2, r01 * a0 + r11 * a1 + r21 * a2,
+            r02 * a0 + r12 * a1 + r22 * a2)
+
+
+@njit(**INLINE)
+def rotation_from_quat(q, i, R):
+    """R[i] = R(q[i] / |q[i]|)."""
+    (R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], R[i, 2, 0],
+     R[i, 2, 1], R[i, 2, 2]) = quat_to_rotation(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
 
 
 @njit(**INLINE)
@@ -99,22 +107,12 @@ def rotate_left(q0, i, tx, ty, tz, q_out):
 @njit(**INLINE)
 def body_kinematics(bodies, q, P, L, i):
     """Scalars of body i: R(q) (row-major), v = P / m and w = R I_body^-1 R^T L (world)."""
-    qw, qx, qy, qz = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-    s = 2.0 / (qw * qw + qx * qx + qy * qy + qz * qz)  # R(q / |q|): RK stages are off unit length
-    r00 = 1.0 - s * (qy * qy + qz * qz)
-    r01 = s * (qx * qy - qw * qz)
-    r02 = s * (qx * qz + qw * qy)
-    r10 = s * (qx * qy + qw * qz)
-    r11 = 1.0 - s * (qx * qx + qz * qz)
-    r12 = s * (qy * qz - qw * qx)
-    r20 = s * (qx * qz - qw * qy)
-    r21 = s * (qy * qz + qw * qx)
-    r22 = 1.0 - s * (qx * qx + qy * qy)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(q[i, 0], q[i, 1], q[i, 2],
+                                                                   q[i, 3])
     im = bodies.inv_mass[i]
     # body-frame angular momentum R^T L, body-frame w, world w
-    lb0 = r00 * L[i, 0] + r10 * L[i, 1] + r20 * L[i, 2]
-    lb1 = r01 * L[i, 0] + r11 * L[i, 1] + r21 * L[i, 2]
-    lb2 = r02 * L[i, 0] + r12 * L[i, 1] + r22 * L[i, 2]
+    lb0, lb1, lb2 = transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                    L[i, 0], L[i, 1], L[i, 2])
     a = bodies.inv_inertia
     wb0 = a[i, 0, 0] * lb0 + a[i, 0, 1] * lb1 + a[i, 0, 2] * lb2
     wb1 = a[i, 1, 0] * lb0 + a[i, 1, 1] * lb1 + a[i, 1, 2] * lb2
@@ -170,24 +168,32 @@ def spring_point(x, R, v, w, body, r, s):
 
 
 @njit(**INLINE)
-def spring_force(springs, s, x, R, v, w):
-    """Force on body a of spring s and the two world offsets: -(k (l - l0) + c dl/dt) e."""
-    a = springs.a[s]
-    b = springs.b[s]
-    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, a, springs.ra, s)
-    if b >= 0:
-        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, b, springs.rb, s)
+def spring_ends(springs, s, x, R, v, w):
+    """Spring s's two world offsets (from the centres of mass; zero at a world anchor) and the
+    position and velocity of end a relative to end b."""
+    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, springs.a[s],
+                                                               springs.ra, s)
+    if springs.b[s] >= 0:
+        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, springs.b[s],
+                                                                   springs.rb, s)
     else:
         obx = oby = obz = 0.0
         pbx, pby, pbz = springs.rb[s, 0], springs.rb[s, 1], springs.rb[s, 2]
         vbx = vby = vbz = 0.0
-    dx, dy, dz = pax - pbx, pay - pby, paz - pbz
+    return (oax, oay, oaz, obx, oby, obz, pax - pbx, pay - pby, paz - pbz,
+            vax - vbx, vay - vby, vaz - vbz)
+
+
+@njit(**INLINE)
+def spring_force(springs, s, x, R, v, w):
+    """Force on body a of spring s and the two world offsets: -(k (l - l0) + c dl/dt) e."""
+    oax, oay, oaz, obx, oby, obz, dx, dy, dz, dvx, dvy, dvz = spring_ends(springs, s, x, R, v, w)
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
     if length > 0.0:
         ex, ey, ez = dx / length, dy / length, dz / length
     else:
         ex = ey = ez = 0.0  # coincident points: the direction (and the force) is undefined -> 0
-    rate = ex * (vax - vbx) + ey * (vay - vby) + ez * (vaz - vbz)
+    rate = ex * dvx + ey * dvy + ez * dvz
     mag = -(springs.stiffness[s] * (length - springs.rest_length[s])
             + springs.damping[s] * rate)
     return mag * ex, mag * ey, mag * ez, oax, oay, oaz, obx, oby, obz
@@ -502,19 +508,9 @@ def free_rotation(bodies, q, L, i, h, strang):
     (1, 2, 3, 2, 1 with half steps outside) second order and time-reversible.
     """
     w0, x0, y0, z0 = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-    s = 2.0 / (w0 * w0 + x0 * x0 + y0 * y0 + z0 * z0)
-    r00 = 1.0 - s * (y0 * y0 + z0 * z0)
-    r01 = s * (x0 * y0 - w0 * z0)
-    r02 = s * (x0 * z0 + w0 * y0)
-    r10 = s * (x0 * y0 + w0 * z0)
-    r11 = 1.0 - s * (x0 * x0 + z0 * z0)
-    r12 = s * (y0 * z0 - w0 * x0)
-    r20 = s * (x0 * z0 - w0 * y0)
-    r21 = s * (y0 * z0 + w0 * x0)
-    r22 = 1.0 - s * (x0 * x0 + y0 * y0)
-    lb0 = r00 * L[i, 0] + r10 * L[i, 1] + r20 * L[i, 2]
-    lb1 = r01 * L[i, 0] + r11 * L[i, 1] + r21 * L[i, 2]
-    lb2 = r02 * L[i, 0] + r12 * L[i, 1] + r22 * L[i, 2]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(w0, x0, y0, z0)
+    lb0, lb1, lb2 = transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                    L[i, 0], L[i, 1], L[i, 2])
     n_sub = 5 if strang else 3
     for j in range(n_sub):
         if strang:
@@ -549,24 +545,33 @@ def free_rotation(bodies, q, L, i, h, strang):
     q[i, 3] = z0 * s
 
 
+@njit(**INLINE)
+def kick(i, s, P, L, F, T):
+    """P += s F, L += s tau for body i."""
+    for c in range(3):
+        P[i, c] += s * F[i, c]
+        L[i, c] += s * T[i, c]
+
+
+@njit(**INLINE)
+def drift_com(bodies, i, h, x, P):
+    """x += h P / m for body i, with the momentum it has now (after the kick)."""
+    im = bodies.inv_mass[i]
+    for c in range(3):
+        x[i, c] += h * P[i, c] * im
+
+
 @njit(**JIT)
 def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     """Kick P, L by h with the forces at the start; drift x by h P/m and the orientation by the
     exact principal-axis sub-rotations (Lie-Trotter) with the new L."""
     n = x.shape[0]
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
+    R, v, w, F, T = force_scratch(n)
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
         for i in range(n):
-            im = bodies.inv_mass[i]
-            for c in range(3):
-                P[i, c] += h * F[i, c]
-                L[i, c] += h * T[i, c]
-                x[i, c] += h * P[i, c] * im
+            kick(i, h, P, L, F, T)
+            drift_com(bodies, i, h, x, P)
             free_rotation(bodies, q, L, i, h, False)
 
 
@@ -577,19 +582,12 @@ def advance_symplectic_euler_exp(bodies, gravity, springs, drag, loads, x, q, P,
     translation; the rotation is explicit in w(q) (|q| stays 1, but a tumbling asymmetric body's
     energy drifts at O(h))."""
     n = x.shape[0]
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
+    R, v, w, F, T = force_scratch(n)
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
         for i in range(n):
-            im = bodies.inv_mass[i]
-            for c in range(3):
-                P[i, c] += h * F[i, c]
-                L[i, c] += h * T[i, c]
-                x[i, c] += h * P[i, c] * im
+            kick(i, h, P, L, F, T)
+            drift_com(bodies, i, h, x, P)
         kinematics(bodies, q, P, L, R, v, w)  # w from the kicked L and the start orientation
         for i in range(n):
             rotate_left(q, i, h * w[i, 0], h * w[i, 1], h * w[i, 2], q)
@@ -606,32 +604,25 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h
     order with damping); without them the scheme is symplectic and time-reversible.
     """
     n = x.shape[0]
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
+    R, v, w, F, T = force_scratch(n)
     Pp = np.empty((n, 3))
     Lp = np.empty((n, 3))
     hh = 0.5 * h
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
         for i in range(n):
-            im = bodies.inv_mass[i]
-            for c in range(3):
+            for c in range(3):  # the half kick, and 2 P_half - P_n for the closing one
                 p_old = P[i, c]
                 l_old = L[i, c]
                 P[i, c] += hh * F[i, c]
                 L[i, c] += hh * T[i, c]
                 Pp[i, c] = 2.0 * P[i, c] - p_old
                 Lp[i, c] = 2.0 * L[i, c] - l_old
-                x[i, c] += h * P[i, c] * im
+            drift_com(bodies, i, h, x, P)
             free_rotation(bodies, q, L, i, h, True)
         evaluate(bodies, gravity, springs, drag, loads, x, q, Pp, Lp, R, v, w, F, T)
         for i in range(n):
-            for c in range(3):
-                P[i, c] += hh * F[i, c]
-                L[i, c] += hh * T[i, c]
+            kick(i, hh, P, L, F, T)
 
 
 # -- implicit Euler (the method is described in implicit.py) -------------------------------
@@ -661,22 +652,23 @@ def _world_inertia(bodies, R, i, Iw):
             Iw[i, r, c] = acc
 
 
+@njit(**INLINE)
+def drag_coefficients(drag, i):
+    """Body i's linear and angular drag coefficients (D's diagonal blocks are -c 1, -c_w 1)."""
+    if drag is not None:
+        return drag.linear[i], drag.angular[i]
+    return 0.0, 0.0
+
+
 @njit(**JIT)
 def spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds):
     """K = dW/dX and D = dW/du (12 x 12) of spring s's wrench W = (f, oa x f, -f, -ob x f) on the
     local unknowns (x_a, phi_a, x_b, phi_b) and (v_a, w_a, v_b, w_b)."""
     a = springs.a[s]
     b = springs.b[s]
-    oax, oay, oaz, pax, pay, paz, vax, vay, vaz = spring_point(x, R, v, w, a, springs.ra, s)
-    if b >= 0:
-        obx, oby, obz, pbx, pby, pbz, vbx, vby, vbz = spring_point(x, R, v, w, b,
-                                                                       springs.rb, s)
-    else:
-        obx = oby = obz = 0.0
-        pbx, pby, pbz = springs.rb[s, 0], springs.rb[s, 1], springs.rb[s, 2]
-        vbx = vby = vbz = 0.0
-    d = np.array([pax - pbx, pay - pby, paz - pbz])
-    dv = np.array([vax - vbx, vay - vby, vaz - vbz])
+    oax, oay, oaz, obx, oby, obz, dx, dy, dz, dvx, dvy, dvz = spring_ends(springs, s, x, R, v, w)
+    d = np.array([dx, dy, dz])
+    dv = np.array([dvx, dvy, dvz])
     k = springs.stiffness[s]
     c = springs.damping[s]
     l0 = springs.rest_length[s]
@@ -739,11 +731,7 @@ def assemble_3d(bodies, gravity, springs, drag, loads, x, q, P, L, h,
     for i in range(n):
         rotation_from_quat(q, i, R)  # evaluate stores R only for springs; needed here anyway
         _world_inertia(bodies, R, i, Iw)
-        cl = 0.0
-        ca = 0.0
-        if drag is not None:
-            cl = drag.linear[i]
-            ca = drag.angular[i]
+        cl, ca = drag_coefficients(drag, i)
         for c in range(3):
             rows[nnz] = 6 * i + c
             cols[nnz] = 6 * i + c
@@ -820,16 +808,8 @@ def backward_rotation(bodies, q, L, i, h, ws):
     for _ in range(30):
         ew, ex, ey, ez = quat_exp(p0, p1, p2)
         tw, tx, ty, tz = quat_mul(ew, ex, ey, ez, q0w, q0x, q0y, q0z)
-        sc = 2.0 / (tw * tw + tx * tx + ty * ty + tz * tz)
-        R[0, 0] = 1.0 - sc * (ty * ty + tz * tz)
-        R[0, 1] = sc * (tx * ty - tw * tz)
-        R[0, 2] = sc * (tx * tz + tw * ty)
-        R[1, 0] = sc * (tx * ty + tw * tz)
-        R[1, 1] = 1.0 - sc * (tx * tx + tz * tz)
-        R[1, 2] = sc * (ty * tz - tw * tx)
-        R[2, 0] = sc * (tx * tz - tw * ty)
-        R[2, 1] = sc * (ty * tz + tw * tx)
-        R[2, 2] = 1.0 - sc * (tx * tx + ty * ty)
+        (R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1],
+         R[2, 2]) = quat_to_rotation(tw, tx, ty, tz)
         # M = I_w^-1 = R I_body^-1 R^T (S as scratch for R I_body^-1)
         for r in range(3):
             for c in range(3):
@@ -887,7 +867,7 @@ def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
             P[i, c] += bodies.mass[i] * du[6 * i + c]
             L[i, c] += (Iw[i, c, 0] * du[6 * i + 3] + Iw[i, c, 1] * du[6 * i + 4]
                         + Iw[i, c, 2] * du[6 * i + 5])
-            x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+        drift_com(bodies, i, h, x, P)
         backward_rotation(bodies, q, L, i, h, ws)
     normalize_quats(q)
 
@@ -896,11 +876,7 @@ def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
 def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     """Backward Euler without springs: the system is block-diagonal, solved body by body."""
     n = x.shape[0]
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
+    R, v, w, F, T = force_scratch(n)
     Iw = np.empty((n, 3, 3))
     du = np.empty(6 * n)
     A = np.empty((3, 3))
@@ -909,25 +885,11 @@ def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
         for i in range(n):
             rotation_from_quat(q, i, R)
             _world_inertia(bodies, R, i, Iw)
-            cl = 0.0
-            ca = 0.0
-            if drag is not None:
-                cl = drag.linear[i]
-                ca = drag.angular[i]
+            cl, ca = drag_coefficients(drag, i)
             for c in range(3):
                 du[6 * i + c] = h * F[i, c] / (bodies.mass[i] + h * cl)
                 for c2 in range(3):
                     A[c, c2] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
-            # 3 x 3 solve by the adjugate (A is symmetric positive definite)
-            c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
-            c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
-            c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
-            det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
-            b0, b1, b2 = h * T[i, 0], h * T[i, 1], h * T[i, 2]
-            du[6 * i + 3] = (c00 * b0 + (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) * b1
-                             + (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) * b2) / det
-            du[6 * i + 4] = (c01 * b0 + (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) * b1
-                             + (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) * b2) / det
-            du[6 * i + 5] = (c02 * b0 + (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) * b1
-                             + (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) * b2) / det
+            du[6 * i + 3], du[6 * i + 4], du[6 * i + 5] = _solve3(A, h * T[i, 0], h * T[i, 1],
+                                                                  h * T[i, 2])
         finish_3d(bodies, x, q, P, L, w, Iw, du, h)
