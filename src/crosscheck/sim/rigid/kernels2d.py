@@ -42,23 +42,29 @@ def spring_point(x, angle, v, w, body, r):
 
 
 @njit(**INLINE)
-def spring_force(springs, s, x, angle, v, w):
-    a = springs.a[s]
-    b = springs.b[s]
-    oax, oay, pax, pay, vax, vay = spring_point(x, angle, v, w, a, springs.ra[s])
-    if b >= 0:
-        obx, oby, pbx, pby, vbx, vby = spring_point(x, angle, v, w, b, springs.rb[s])
+def spring_ends(springs, s, x, angle, v, w):
+    """Spring s's two world offsets (from the centres of mass; zero at a world anchor) and the
+    position and velocity of end a relative to end b."""
+    oax, oay, pax, pay, vax, vay = spring_point(x, angle, v, w, springs.a[s], springs.ra[s])
+    if springs.b[s] >= 0:
+        obx, oby, pbx, pby, vbx, vby = spring_point(x, angle, v, w, springs.b[s], springs.rb[s])
     else:
         obx = oby = 0.0
         pbx, pby = springs.rb[s, 0], springs.rb[s, 1]
         vbx = vby = 0.0
-    dx, dy = pax - pbx, pay - pby
+    return oax, oay, obx, oby, pax - pbx, pay - pby, vax - vbx, vay - vby
+
+
+@njit(**INLINE)
+def spring_force(springs, s, x, angle, v, w):
+    """Force on body a of spring s and the two world offsets: -(k (l - l0) + c dl/dt) e."""
+    oax, oay, obx, oby, dx, dy, dvx, dvy = spring_ends(springs, s, x, angle, v, w)
     length = np.sqrt(dx * dx + dy * dy)
     if length > 0.0:
         ex, ey = dx / length, dy / length
     else:
-        ex = ey = 0.0
-    rate = ex * (vax - vbx) + ey * (vay - vby)
+        ex = ey = 0.0  # coincident points: the direction (and the force) is undefined -> 0
+    rate = ex * dvx + ey * dvy
     mag = -(springs.stiffness[s] * (length - springs.rest_length[s])
             + springs.damping[s] * rate)
     return mag * ex, mag * ey, oax, oay, obx, oby
@@ -126,134 +132,143 @@ def observe(bodies, P, L, vel, omega):
     kinematics(bodies, P, L, vel, omega)
 
 
+# -- scratch arrays and the per-body state updates every integrator is written with ---------------
+# As in kernels3d: scratch allocated once per call, each stage one pass over the bodies, and the
+# inlined helpers keep the exact floating-point expressions (``y + s * k``) of the hand-written
+# loops they replaced.
+@njit(**INLINE)
+def state_scratch(n):
+    """Arrays shaped like the state (x, angle, P, L) and like its derivative (v, w, F, T): a
+    stage state, a Runge-Kutta accumulator or what ``evaluate`` fills."""
+    return np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
+
+
+@njit(**INLINE)
+def copy_state(i, dst_x, dst_angle, dst_P, dst_L, v, w, F, T):
+    """Body i of dst = k = (v, w, F, tau): a Runge-Kutta accumulator's first stage."""
+    for c in range(2):
+        dst_x[i, c] = v[i, c]
+        dst_P[i, c] = F[i, c]
+    dst_angle[i] = w[i]
+    dst_L[i] = T[i]
+
+
+@njit(**INLINE)
+def axpy_state(i, s, dst_x, dst_angle, dst_P, dst_L, x, angle, P, L, v, w, F, T):
+    """Body i of dst = y + s k, y = (x, angle, P, L), k = (v, w, F, tau); dst may be y (in place)
+    or k's accumulator."""
+    for c in range(2):
+        dst_x[i, c] = x[i, c] + s * v[i, c]
+        dst_P[i, c] = P[i, c] + s * F[i, c]
+    dst_angle[i] = angle[i] + s * w[i]
+    dst_L[i] = L[i] + s * T[i]
+
+
+@njit(**INLINE)
+def axpy_sum_state(i, s, x, angle, P, L, ax, aA, aP, aL, v, w, F, T):
+    """Body i of y += s (a + k): the Runge-Kutta step from an accumulator a and the last stage k."""
+    for c in range(2):
+        x[i, c] += s * (ax[i, c] + v[i, c])
+        P[i, c] += s * (aP[i, c] + F[i, c])
+    angle[i] += s * (aA[i] + w[i])
+    L[i] += s * (aL[i] + T[i])
+
+
+@njit(**INLINE)
+def kick(i, s, P, L, F, T):
+    """P += s F, L += s tau for body i."""
+    for c in range(2):
+        P[i, c] += s * F[i, c]
+    L[i] += s * T[i]
+
+
+@njit(**INLINE)
+def kick_drift(bodies, i, h, x, angle, P, L, F, T):
+    """Body i: P += h F, then x += h P / m with the new P; the same for L and the angle. (Each
+    coordinate's kick and drift kept together: split into a kick and a drift pass over the body,
+    the gravity-only step ran 15 % slower, measured.)"""
+    for c in range(2):
+        P[i, c] += h * F[i, c]
+        x[i, c] += h * P[i, c] * bodies.inv_mass[i]
+    L[i] += h * T[i]
+    angle[i] += h * L[i] * bodies.inv_moment[i]
+
+
+# -- explicit Runge-Kutta family -------------------------------------------------------------------
 @njit(**JIT)
 def advance_explicit_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
+    v, w, F, T = state_scratch(n)
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
-        for i in range(n):
-            for c in range(2):
-                x[i, c] += h * v[i, c]
-                P[i, c] += h * F[i, c]
-            angle[i] += h * w[i]
-            L[i] += h * T[i]
+        for i in range(n):  # y += h f(y)
+            axpy_state(i, h, x, angle, P, L, x, angle, P, L, v, w, F, T)
 
 
 @njit(**JIT)
 def advance_midpoint(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
-    xs = np.empty((n, 2))
-    As = np.empty(n)
-    Ps = np.empty((n, 2))
-    Ls = np.empty(n)
+    v, w, F, T = state_scratch(n)
+    xs, As, Ps, Ls = state_scratch(n)
     hh = 0.5 * h
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
-        for i in range(n):
-            for c in range(2):
-                xs[i, c] = x[i, c] + hh * v[i, c]
-                Ps[i, c] = P[i, c] + hh * F[i, c]
-            As[i] = angle[i] + hh * w[i]
-            Ls[i] = L[i] + hh * T[i]
+        for i in range(n):  # ys = y + h/2 f(y)
+            axpy_state(i, hh, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
         evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
-        for i in range(n):
-            for c in range(2):
-                x[i, c] += h * v[i, c]
-                P[i, c] += h * F[i, c]
-            angle[i] += h * w[i]
-            L[i] += h * T[i]
+        for i in range(n):  # y += h f(ys)
+            axpy_state(i, h, x, angle, P, L, x, angle, P, L, v, w, F, T)
 
 
 @njit(**JIT)
 def advance_rk4(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
-    xs = np.empty((n, 2))
-    As = np.empty(n)
-    Ps = np.empty((n, 2))
-    Ls = np.empty(n)
-    ax = np.empty((n, 2))
-    aA = np.empty(n)
-    aP = np.empty((n, 2))
-    aL = np.empty(n)
+    v, w, F, T = state_scratch(n)
+    xs, As, Ps, Ls = state_scratch(n)  # the stage state
+    ax, aA, aP, aL = state_scratch(n)  # k1 + 2 k2 + 2 k3 (+ k4)
     hh = 0.5 * h
     h6 = h / 6.0
     for _ in range(n_steps):
+        # k1 at y: a = k1; ys = y + h/2 k1
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
         for i in range(n):
-            for c in range(2):
-                ax[i, c] = v[i, c]
-                aP[i, c] = F[i, c]
-                xs[i, c] = x[i, c] + hh * v[i, c]
-                Ps[i, c] = P[i, c] + hh * F[i, c]
-            aA[i] = w[i]
-            aL[i] = T[i]
-            As[i] = angle[i] + hh * w[i]
-            Ls[i] = L[i] + hh * T[i]
+            copy_state(i, ax, aA, aP, aL, v, w, F, T)
+            axpy_state(i, hh, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
+        # k2 at y + h/2 k1, k3 at y + h/2 k2: a += 2 k; the next stage from y
         for stage in range(2):
             evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
             step = hh if stage == 0 else h
             for i in range(n):
-                for c in range(2):
-                    ax[i, c] += 2.0 * v[i, c]
-                    aP[i, c] += 2.0 * F[i, c]
-                    xs[i, c] = x[i, c] + step * v[i, c]
-                    Ps[i, c] = P[i, c] + step * F[i, c]
-                aA[i] += 2.0 * w[i]
-                aL[i] += 2.0 * T[i]
-                As[i] = angle[i] + step * w[i]
-                Ls[i] = L[i] + step * T[i]
+                axpy_state(i, 2.0, ax, aA, aP, aL, ax, aA, aP, aL, v, w, F, T)
+                axpy_state(i, step, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
+        # k4 at y + h k3; the step y += h/6 (a + k4)
         evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
         for i in range(n):
-            for c in range(2):
-                x[i, c] += h6 * (ax[i, c] + v[i, c])
-                P[i, c] += h6 * (aP[i, c] + F[i, c])
-            angle[i] += h6 * (aA[i] + w[i])
-            L[i] += h6 * (aL[i] + T[i])
+            axpy_sum_state(i, h6, x, angle, P, L, ax, aA, aP, aL, v, w, F, T)
 
 
+# -- symplectic family: kick, then drift with the new momenta ----------------------------------
 @njit(**JIT)
 def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
+    v, w, F, T = state_scratch(n)
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
         for i in range(n):
-            for c in range(2):
-                P[i, c] += h * F[i, c]
-                x[i, c] += h * P[i, c] * bodies.inv_mass[i]
-            L[i] += h * T[i]
-            angle[i] += h * L[i] * bodies.inv_moment[i]
+            kick_drift(bodies, i, h, x, angle, P, L, F, T)
 
 
 @njit(**JIT)
 def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     """Velocity Verlet; velocity-dependent forces of the closing half kick use 2 P_half - P_n."""
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
+    v, w, F, T = state_scratch(n)
     Pp = np.empty((n, 2))
     Lp = np.empty(n)
     hh = 0.5 * h
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
-        for i in range(n):
+        for i in range(n):  # half kick and drift; 2 P_half - P_n for the closing half kick
             for c in range(2):
                 p_old = P[i, c]
                 P[i, c] += hh * F[i, c]
@@ -265,26 +280,26 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_step
             angle[i] += h * L[i] * bodies.inv_moment[i]
         evaluate(bodies, gravity, springs, drag, loads, x, angle, Pp, Lp, v, w, F, T)
         for i in range(n):
-            for c in range(2):
-                P[i, c] += hh * F[i, c]
-            L[i] += hh * T[i]
+            kick(i, hh, P, L, F, T)
 
 
 # -- implicit Euler (the method is described in implicit.py) -------------------------------
+@njit(**INLINE)
+def drag_coefficients(drag, i):
+    """Body i's linear and angular drag coefficients (D's diagonal blocks are -c 1, -c_w)."""
+    if drag is not None:
+        return drag.linear[i], drag.angular[i]
+    return 0.0, 0.0
+
+
 @njit(**JIT)
 def spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds):
     """K, D (6 x 6) of spring s's wrench (f, oa x f, -f, -ob x f) on (x_a, th_a, x_b, th_b)."""
     a = springs.a[s]
     b = springs.b[s]
-    oax, oay, pax, pay, vax, vay = spring_point(x, angle, v, w, a, springs.ra[s])
-    if b >= 0:
-        obx, oby, pbx, pby, vbx, vby = spring_point(x, angle, v, w, b, springs.rb[s])
-    else:
-        obx = oby = 0.0
-        pbx, pby = springs.rb[s, 0], springs.rb[s, 1]
-        vbx = vby = 0.0
-    d = np.array([pax - pbx, pay - pby])
-    dv = np.array([vax - vbx, vay - vby])
+    oax, oay, obx, oby, dx, dy, dvx, dvy = spring_ends(springs, s, x, angle, v, w)
+    d = np.array([dx, dy])
+    dv = np.array([dvx, dvy])
     k = springs.stiffness[s]
     c = springs.damping[s]
     l0 = springs.rest_length[s]
@@ -338,11 +353,7 @@ def assemble_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, h,
     evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
     nnz = 0
     for i in range(n):
-        cl = 0.0
-        ca = 0.0
-        if drag is not None:
-            cl = drag.linear[i]
-            ca = drag.angular[i]
+        cl, ca = drag_coefficients(drag, i)
         for c in range(2):
             rows[nnz] = 3 * i + c
             cols[nnz] = 3 * i + c
@@ -400,19 +411,12 @@ def finish_2d(bodies, x, angle, P, L, w, du, h):
 @njit(**JIT)
 def advance_local_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
     n = x.shape[0]
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
+    v, w, F, T = state_scratch(n)
     du = np.empty(3 * n)
     for _ in range(n_steps):
         evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
         for i in range(n):
-            cl = 0.0
-            ca = 0.0
-            if drag is not None:
-                cl = drag.linear[i]
-                ca = drag.angular[i]
+            cl, ca = drag_coefficients(drag, i)
             du[3 * i] = h * F[i, 0] / (bodies.mass[i] + h * cl)
             du[3 * i + 1] = h * F[i, 1] / (bodies.mass[i] + h * cl)
             du[3 * i + 2] = h * T[i] / (bodies.moment[i] + h * ca)
