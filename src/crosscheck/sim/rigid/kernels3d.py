@@ -358,6 +358,18 @@ def axpy_state(i, s, dst_x, dst_q, dst_P, dst_L, x, q, P, L, v, dq, F, T):
 
 
 @njit(**INLINE)
+def axpy_sum_state(i, s, x, q, P, L, ax, aq, aP, aL, v, dq, F, T):
+    """Body i of y += s (a + k): the Runge-Kutta step from an accumulator a and the last stage k
+    (``dq`` the body's quaternion rate tuple, as in ``axpy_state``)."""
+    for c in range(3):
+        x[i, c] += s * (ax[i, c] + v[i, c])
+        P[i, c] += s * (aP[i, c] + F[i, c])
+        L[i, c] += s * (aL[i, c] + T[i, c])
+    for c in range(4):
+        q[i, c] += s * (aq[i, c] + dq[c])
+
+
+@njit(**INLINE)
 def row4(a, i):
     """Row i of an (n, 4) array as a tuple (a quaternion rate for ``axpy_state``)."""
     return a[i, 0], a[i, 1], a[i, 2], a[i, 3]
@@ -404,7 +416,7 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     xs, qs, Ps, Ls = state_scratch(n)  # the stage state
-    ax, aq, aP, aL = state_scratch(n)  # k1 + 2 k2 + 2 k3 (+ k4)
+    ax, aq, aP, aL = state_scratch(n)  # k1 + 2 k2 + 2 k3
     hh = 0.5 * h
     h6 = h / 6.0
     for _ in range(n_steps):
@@ -423,12 +435,11 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
                 dq = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
                 axpy_state(i, 2.0, ax, aq, aP, aL, ax, aq, aP, aL, v, dq, F, T)
                 axpy_state(i, step, xs, qs, Ps, Ls, x, q, P, L, v, dq, F, T)
-        # k4 at y + h k3; the step y += h/6 (a + k4) (a + 1.0 k4 is a + k4 exactly)
+        # k4 at y + h k3; the step y += h/6 (a + k4), q renormalised
         evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
         for i in range(n):
             dq = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
-            axpy_state(i, 1.0, ax, aq, aP, aL, ax, aq, aP, aL, v, dq, F, T)
-            axpy_state(i, h6, x, q, P, L, x, q, P, L, ax, row4(aq, i), aP, aL)
+            axpy_sum_state(i, h6, x, q, P, L, ax, aq, aP, aL, v, dq, F, T)
             normalize_quat(q, i)
 
 
