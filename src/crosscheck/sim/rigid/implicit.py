@@ -64,47 +64,41 @@ def _solve(rows, cols, vals, rhs, nnz):
         return scipy.sparse.linalg.spsolve(A, rhs)
 
 
-def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
-    args = model.kernel_args()
-    x, q, P, L = state.arrays()
-    if model.springs is None:
-        k3.advance_local_3d(*args, x, q, P, L, n_steps, h)
-        return
-    n = x.shape[0]
-    nnz_max = 12 * n + 144 * len(model.springs.a)
-    rows = np.empty(nnz_max, dtype=np.int64)
-    cols = np.empty(nnz_max, dtype=np.int64)
-    vals = np.empty(nnz_max)
-    rhs = np.empty(6 * n)
-    R = np.empty((n, 3, 3))
-    v = np.empty((n, 3))
-    w = np.empty((n, 3))
-    F = np.empty((n, 3))
-    T = np.empty((n, 3))
-    Iw = np.empty((n, 3, 3))
+def _coupled_steps(n_steps, n_unknowns, nnz_max, assemble, assemble_args, finish, finish_args):
+    """Steps with springs: assemble the sparse system into triplet buffers reused every step
+    (``assemble(*assemble_args, rows, cols, vals, rhs) -> nnz``), solve it, and apply the velocity
+    increment (``finish(*finish_args, du)``)."""
+    coo = (np.empty(nnz_max, dtype=np.int64), np.empty(nnz_max, dtype=np.int64),
+           np.empty(nnz_max), np.empty(n_unknowns))
+    assemble_args = (*assemble_args, *coo)
     for _ in range(n_steps):
-        nnz = k3.assemble_3d(*args, x, q, P, L, h, R, v, w, F, T, Iw, rows, cols, vals, rhs)
-        du = _solve(rows, cols, vals, rhs, nnz)
-        k3.finish_3d(model.bodies, x, q, P, L, w, Iw, du, h)
+        nnz = assemble(*assemble_args)
+        finish(*finish_args, _solve(*coo, nnz))
+
+
+def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
+    args = (*model.kernel_args(), *state.arrays())
+    if model.springs is None:
+        k3.advance_local_3d(*args, n_steps, h)
+        return
+    x, q, P, L = state.arrays()
+    n = x.shape[0]
+    R, v, w, F, T, Iw = (np.empty((n, *s)) for s in ((3, 3), (3,), (3,), (3,), (3,), (3, 3)))
+    # entries: per body 3 (mass) + 9 (world inertia), per spring one 12 x 12 block
+    _coupled_steps(n_steps, 6 * n, 12 * n + 144 * len(model.springs.a),
+                   k3.assemble_3d, (*args, h, R, v, w, F, T, Iw),
+                   k3.finish_3d, (model.bodies, x, q, P, L, Iw, h))
 
 
 def advance_implicit_2d(model, state, n_steps: int, h: float) -> None:
-    args = model.kernel_args()
-    x, angle, P, L = state.arrays()
+    args = (*model.kernel_args(), *state.arrays())
     if model.springs is None:
-        k2.advance_local_2d(*args, x, angle, P, L, n_steps, h)
+        k2.advance_local_2d(*args, n_steps, h)
         return
+    x, angle, P, L = state.arrays()
     n = x.shape[0]
-    nnz_max = 3 * n + 36 * len(model.springs.a)
-    rows = np.empty(nnz_max, dtype=np.int64)
-    cols = np.empty(nnz_max, dtype=np.int64)
-    vals = np.empty(nnz_max)
-    rhs = np.empty(3 * n)
-    v = np.empty((n, 2))
-    w = np.empty(n)
-    F = np.empty((n, 2))
-    T = np.empty(n)
-    for _ in range(n_steps):
-        nnz = k2.assemble_2d(*args, x, angle, P, L, h, v, w, F, T, rows, cols, vals, rhs)
-        du = _solve(rows, cols, vals, rhs, nnz)
-        k2.finish_2d(model.bodies, x, angle, P, L, w, du, h)
+    v, w, F, T = np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
+    # entries: per body 2 (mass) + 1 (moment), per spring one 6 x 6 block
+    _coupled_steps(n_steps, 3 * n, 3 * n + 36 * len(model.springs.a),
+                   k2.assemble_2d, (*args, h, v, w, F, T),
+                   k2.finish_2d, (model.bodies, x, angle, P, L, w, h))

@@ -399,7 +399,7 @@ def assemble_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, h,
 
 
 @njit(**JIT)
-def finish_2d(bodies, x, angle, P, L, w, du, h):
+def finish_2d(bodies, x, angle, P, L, w, h, du):
     for i in range(x.shape[0]):
         for c in range(2):
             P[i, c] += bodies.mass[i] * du[3 * i + c]
@@ -420,4 +420,4 @@ def advance_local_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, n_st
             du[3 * i] = h * F[i, 0] / (bodies.mass[i] + h * cl)
             du[3 * i + 1] = h * F[i, 1] / (bodies.mass[i] + h * cl)
             du[3 * i + 2] = h * T[i] / (bodies.moment[i] + h * ca)
-        finish_2d(bodies, x, angle, P, L, w, du, h)
+        finish_2d(bodies, x, angle, P, L, w, h, du)

@@ -870,7 +870,7 @@ def backward_rotation(bodies, q, L, i, h, ws):
 
 
 @njit(**JIT)
-def finish_3d(bodies, x, q, P, L, w, Iw, du, h):
+def finish_3d(bodies, x, q, P, L, Iw, h, du):
     """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L."""
     ws = np.empty((5, 3, 3))
     for i in range(x.shape[0]):
@@ -903,4 +903,4 @@ def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
                     A[c, c2] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
             du[6 * i + 3], du[6 * i + 4], du[6 * i + 5] = _solve3(A, h * T[i, 0], h * T[i, 1],
                                                                   h * T[i, 2])
-        finish_3d(bodies, x, q, P, L, w, Iw, du, h)
+        finish_3d(bodies, x, q, P, L, Iw, h, du)
