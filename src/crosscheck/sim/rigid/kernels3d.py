@@ -278,16 +278,10 @@ def quat_rate_of(q, i, wx, wy, wz):
             0.5 * (wy * qw + wz * qx - wx * qz), 0.5 * (wz * qw + wx * qy - wy * qx))
 
 
-@njit(**INLINE)
-def quat_rate_into(q, w, dq, i):
-    """dq[i] = dq/dt of body i (1/2 (0, w) q)."""
-    dq[i, 0], dq[i, 1], dq[i, 2], dq[i, 3] = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
-
-
 @njit(**JIT)
 def quat_rate(q, w, dq):
     for i in range(q.shape[0]):
-        quat_rate_into(q, w, dq, i)
+        dq[i, 0], dq[i, 1], dq[i, 2], dq[i, 3] = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
 
 
 @njit(**JIT)
@@ -351,10 +345,8 @@ def axpy_state(i, s, dst_x, dst_q, dst_P, dst_L, x, q, P, L, v, dq, F, T):
     derivative k = (v, dq/dt, F, tau); dst may be y (in place) or k's accumulator. ``dq`` is the
     body's quaternion rate as a 4-tuple (kept in registers, as ``quat_rate_of`` returns it)."""
     axpy_xPL(i, s, dst_x, dst_P, dst_L, x, P, L, v, F, T)
-    dst_q[i, 0] = q[i, 0] + s * dq[0]
-    dst_q[i, 1] = q[i, 1] + s * dq[1]
-    dst_q[i, 2] = q[i, 2] + s * dq[2]
-    dst_q[i, 3] = q[i, 3] + s * dq[3]
+    for c in range(4):
+        dst_q[i, c] = q[i, c] + s * dq[c]
 
 
 @njit(**INLINE)
@@ -393,9 +385,9 @@ def advance_midpoint(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     xs, qs, Ps, Ls = state_scratch(n)
-    # The rates in their own pass (not per body in the update loops, as in the other schemes):
-    # fused, LLVM spilled this kernel's evaluate arguments on every step (2.3x slower at N = 1
-    # with springs, measured).
+    # The rates in a pass of their own, not per body inside the update loops as in the other
+    # schemes: fused, this kernel's machine code moved its spilled evaluate arguments between
+    # stack slots on every step (2.3x slower at N = 1 with springs, measured).
     dq = np.empty((n, 4))
     hh = 0.5 * h
     for _ in range(n_steps):
