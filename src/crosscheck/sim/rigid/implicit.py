@@ -87,7 +87,7 @@ def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
     # entries: per body 3 (mass) + 9 (world inertia), per spring one 12 x 12 block
     _coupled_steps(n_steps, 6 * n, 12 * n + 144 * len(model.springs.a),
                    k3.assemble_3d, (*args, h, R, v, w, F, T, Iw),
-                   k3.finish_3d, (model.bodies, x, q, P, L, Iw, h))
+                   k3.finish_3d, (model.bodies, x, q, P, L, Iw, np.empty((5, 3, 3)), h))
 
 
 def advance_implicit_2d(model, state, n_steps: int, h: float) -> None:

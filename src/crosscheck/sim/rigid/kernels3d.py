@@ -43,13 +43,6 @@ def quat_to_rotation(w, x, y, z):
 
 
 @njit(**INLINE)
-def transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22, a0, a1, a2):
-    """R^T a (a world vector in the body frame)."""
-    return (r00 * a0 + r10 * a1 + r20 * a2, r01 * a0 + r11 * a1 + r21 * a2,
-            r02 * a0 + r12 * a1 + r22 * a2)
-
-
-@njit(**INLINE)
 def rotation_from_quat(q, i, R):
     """R[i] = R(q[i] / |q[i]|)."""
     (R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], R[i, 2, 0],
@@ -111,8 +104,9 @@ def body_kinematics(bodies, q, P, L, i):
                                                                    q[i, 3])
     im = bodies.inv_mass[i]
     # body-frame angular momentum R^T L, body-frame w, world w
-    lb0, lb1, lb2 = transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    L[i, 0], L[i, 1], L[i, 2])
+    lb0 = r00 * L[i, 0] + r10 * L[i, 1] + r20 * L[i, 2]
+    lb1 = r01 * L[i, 0] + r11 * L[i, 1] + r21 * L[i, 2]
+    lb2 = r02 * L[i, 0] + r12 * L[i, 1] + r22 * L[i, 2]
     a = bodies.inv_inertia
     wb0 = a[i, 0, 0] * lb0 + a[i, 0, 1] * lb1 + a[i, 0, 2] * lb2
     wb1 = a[i, 1, 0] * lb0 + a[i, 1, 1] * lb1 + a[i, 1, 2] * lb2
@@ -512,8 +506,9 @@ def free_rotation(bodies, q, L, i, h, strang):
     """
     w0, x0, y0, z0 = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(w0, x0, y0, z0)
-    lb0, lb1, lb2 = transpose_times(r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    L[i, 0], L[i, 1], L[i, 2])
+    lb0 = r00 * L[i, 0] + r10 * L[i, 1] + r20 * L[i, 2]  # body-frame L = R^T L
+    lb1 = r01 * L[i, 0] + r11 * L[i, 1] + r21 * L[i, 2]
+    lb2 = r02 * L[i, 0] + r12 * L[i, 1] + r22 * L[i, 2]
     n_sub = 5 if strang else 3
     for j in range(n_sub):
         if strang:
@@ -862,9 +857,9 @@ def backward_rotation(bodies, q, L, i, h, ws):
 
 
 @njit(**JIT)
-def finish_3d(bodies, x, q, P, L, Iw, h, du):
-    """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L."""
-    ws = np.empty((5, 3, 3))
+def finish_3d(bodies, x, q, P, L, Iw, ws, h, du):
+    """P += m dv, L += I(q_n) dw, x += h P/m; q by backward Euler with the new L (``ws``:
+    backward_rotation's scratch, allocated once by the caller rather than on every step)."""
     for i in range(x.shape[0]):
         for c in range(3):
             P[i, c] += bodies.mass[i] * du[6 * i + c]
@@ -881,6 +876,7 @@ def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     Iw = np.empty((n, 3, 3))
+    ws = np.empty((5, 3, 3))
     du = np.empty(6 * n)
     A = np.empty((3, 3))
     for _ in range(n_steps):
@@ -895,4 +891,4 @@ def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
                     A[c, c2] = Iw[i, c, c2] + (h * ca if c == c2 else 0.0)
             du[6 * i + 3], du[6 * i + 4], du[6 * i + 5] = _solve3(A, h * T[i, 0], h * T[i, 1],
                                                                   h * T[i, 2])
-        finish_3d(bodies, x, q, P, L, Iw, h, du)
+        finish_3d(bodies, x, q, P, L, Iw, ws, h, du)
