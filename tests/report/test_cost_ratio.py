@@ -22,3 +22,26 @@ def test_pairs_same_integrator_then_mujoco_default_and_never_across_steps_or_cas
     assert r["a:pybullet-multibody@0.001"] == 0.02 / 0.01
     assert r["a:mujoco-rk4@0.001"] == 1.0
     assert "a:inhouse-rk4@0.0005" not in r and "fluid:inhouse-semi_lagrangian@0.001" not in r
+
+
+def test_embedded_images_declare_the_type_of_their_bytes(tmp_path):
+    # The fluid adapter writes PNG frames and a GIF animation; a data URI must carry the type of
+    # what it holds, or strict viewers refuse the animation.
+    import base64
+    import re
+
+    from crosscheck.report.html import render
+    from crosscheck.report.results import new_document
+
+    png = tmp_path / "frames.png"
+    gif = tmp_path / "surface.gif"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 16)
+    gif.write_bytes(b"GIF89a" + b"\0" * 16)
+    doc = new_document()
+    doc["cells"] = [{"id": "c", "case": "c", "engine": "inhouse", "integrator": "x", "dt": 0.01,
+                     "status": "pass", "metrics": {}, "plots": [str(png), str(gif)]}]
+    html = render(doc, doc["cells"])
+    found = re.findall(r'src="data:(image/[a-z+]+);base64,([A-Za-z0-9+/=]+)"', html)
+    kinds = {mime: base64.b64decode(data)[:6] for mime, data in found}
+    assert kinds["image/gif"] == b"GIF89a"
+    assert kinds["image/png"].startswith(b"\x89PNG")

@@ -5,7 +5,7 @@ description and reference, the figure of :mod:`crosscheck.report.plots` (energy 
 drift and trajectory error over time for every engine, cost against accuracy), the fluid plots
 the fluid adapter produced, and a table of every cell with status, cost (wall seconds per
 simulated second) beside its accuracy metrics, and the worst metric. Images are embedded as
-``data:image/png;base64`` URIs.
+``data:image/png;base64`` URIs (animations as ``data:image/gif``).
 """
 
 from __future__ import annotations
@@ -43,8 +43,11 @@ def _num(value) -> str:
     return "" if value is None else f"{value:.3g}"
 
 
-def _img(data: bytes, alt: str) -> str:
-    return (f'<img alt="{_e(alt)}" src="data:image/png;base64,'
+MIME = {".png": "image/png", ".gif": "image/gif", ".svg": "image/svg+xml", ".jpg": "image/jpeg"}
+
+
+def _img(data: bytes, alt: str, mime: str = "image/png") -> str:
+    return (f'<img alt="{_e(alt)}" src="data:{mime};base64,'
             f'{base64.b64encode(data).decode("ascii")}">')
 
 
@@ -128,7 +131,8 @@ def render(doc: dict[str, Any], series_cells: list[dict[str, Any]] | None = None
         for c in group:
             for p in c.get("plots") or []:
                 try:
-                    parts.append(_img(Path(p).read_bytes(), f"{case} {Path(p).stem}"))
+                    parts.append(_img(Path(p).read_bytes(), f"{case} {Path(p).stem}",
+                                      MIME.get(Path(p).suffix.lower(), "image/png")))
                 except OSError:
                     parts.append(f"<p class='small'>missing plot {_e(p)}</p>")
         parts.append(_cell_table(group))
