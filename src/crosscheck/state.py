@@ -1,11 +1,11 @@
 """Trajectory: the normalised state every engine returns, and its .npz file format.
 
 Per body and sample: centre of mass (world), orientation of the declared body frame (unit
-quaternion w, x, y, z, sign-continuous; 2D: continuous angle, never wrapped), centre-of-mass velocity (world) and
-angular velocity (world; 2D: scalar). ``meta`` holds what is needed to interpret the arrays with
-NumPy alone (masses, body-frame inertia about the centre of mass, engine settings read back,
-stepping wall time). A run that blew up is truncated at the last finite sample and carries
-``failure = {"time": t, "reason": ...}``.
+quaternion w, x, y, z, sign-continuous; 2D: continuous angle, never wrapped), centre-of-mass
+velocity (world) and angular velocity (world; 2D: scalar). ``meta`` holds what is needed to
+interpret the arrays with NumPy alone (masses, body-frame inertia about the centre of mass,
+engine settings read back, stepping wall time). A run that blew up is truncated at the last
+finite sample and carries ``failure = {"time": t, "reason": ...}``.
 """
 
 from __future__ import annotations
