@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from toml_writer import to_toml  # tests/foundation/toml_writer.py
 
 from crosscheck.errors import CaseError
 from crosscheck.scene import massprops
@@ -27,39 +28,6 @@ REPO = Path(__file__).resolve().parents[2]
 CASES = REPO / "cases"
 MESHES = CASES / "meshes"
 NAME = "my_case.toml"  # the file name every error message must carry
-
-
-# -- a tiny TOML writer (the subset cases use: everything as inline values) --------------------
-def _toml_str(s: str) -> str:
-    out = []
-    for ch in s:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v)  # 'nan', 'inf', '-inf', '1e-05' are all TOML floats
-    if isinstance(v, str):
-        return _toml_str(v)
-    if isinstance(v, list | tuple):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{_toml_str(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
-    raise TypeError(type(v))
-
-
-def to_toml(case: dict) -> str:
-    return "".join(f"{_toml_str(k)} = {toml_value(v)}\n" for k, v in case.items())
 
 
 def load(case: dict, name: str = NAME, base_dir: Path = CASES / "rigid3d") -> Scene:

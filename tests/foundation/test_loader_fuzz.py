@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from toml_writer import to_toml  # tests/foundation/toml_writer.py
 
 from crosscheck.errors import CaseError
 from crosscheck.scene.loader import load_case, load_case_text
@@ -32,39 +33,6 @@ BASE_DIR = REPO / "cases" / "rigid3d"  # so "../meshes/l_bracket.obj" resolves
 FUZZ = settings(max_examples=int(os.environ.get("CROSSCHECK_FUZZ_EXAMPLES", "150")),
                 deadline=2000,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-
-
-# -- a small TOML serialiser: every value inline, every key quoted ---------------------------------
-def _toml_str(s: str) -> str:
-    out = []
-    for ch in s:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v)  # nan, inf, -inf, 1e+200 are TOML floats
-    if isinstance(v, str):
-        return _toml_str(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{_toml_str(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
-    raise TypeError(type(v))
-
-
-def to_toml(case: dict) -> str:
-    return "".join(f"{_toml_str(k)} = {toml_value(v)}\n" for k, v in case.items())
 
 
 def test_serialiser_round_trips_through_tomllib():
