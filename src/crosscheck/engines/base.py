@@ -49,6 +49,10 @@ class EngineBase:
     """Shared behaviour: the capability check, the sampling plan and the common meta fields."""
 
     name = "base"
+    # Why an engine lacks an effect, where a specific reason helps more than the generic one.
+    effect_reasons: dict[str, str] = {
+        "contact": "contact is not mapped yet (reserved for the contact issue)",
+    }
 
     def capabilities(self) -> Capabilities:  # pragma: no cover - every adapter overrides
         raise NotImplementedError
@@ -58,6 +62,11 @@ class EngineBase:
 
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         caps = self.capabilities()
+        # Effects first: a fluid scene's integrator names mean nothing to a rigid engine.
+        for effect in scene.effects.names():
+            if effect not in caps.effects:
+                return self.effect_reasons.get(
+                    effect, f"{self.name} cannot simulate the effect {effect!r}")
         if scene.dimension not in caps.dimensions:
             return f"{self.name} has no {scene.dimension}D scenes"
         if integrator not in caps.integrators:
@@ -65,10 +74,11 @@ class EngineBase:
         for body in scene.bodies:
             if body.shape.kind not in caps.shapes:
                 return f"{self.name} has no {body.shape.kind} shape (body {body.name!r})"
-        for effect in scene.effects.names():
-            if effect not in caps.effects:
-                return f"{self.name} cannot simulate the effect {effect!r}"
+        self.check_options(scene)  # unknown options are a case error, not a skip
         return None
+
+    def check_options(self, scene: Scene) -> None:
+        """Raise CaseError for options the case pins for this engine that it does not know."""
 
     def base_meta(self, scene: Scene, integrator: str, dt: float) -> dict[str, Any]:
         """Fields every Trajectory carries so its arrays can be read with NumPy alone."""

@@ -100,10 +100,10 @@ class InhouseEngine(EngineBase):
         if integrator not in INTEGRATORS:
             return (f"inhouse has no rigid-body integrator {integrator!r} "
                     f"(it has {list(INTEGRATORS)})")
-        reason = super().not_applicable(scene, integrator)
-        if reason is None:
-            self._options(scene)
-        return reason
+        return super().not_applicable(scene, integrator)
+
+    def check_options(self, scene: Scene) -> None:
+        self._options(scene)  # raises CaseError on an unknown key
 
     def _options(self, scene: Scene) -> dict[str, Any]:
         from crosscheck.errors import CaseError

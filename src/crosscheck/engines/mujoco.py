@@ -779,6 +779,11 @@ class MujocoModel:
 
 class MujocoEngine(EngineBase):
     name = "mujoco"
+    effect_reasons = {**EngineBase.effect_reasons,
+                      "fluid": "MuJoCo has no grid fluid (its fluid forces are a drag model)"}
+
+    def check_options(self, scene: Scene) -> None:
+        engine_options(scene)  # raises CaseError on an unknown key
 
     def capabilities(self) -> Capabilities:
         return Capabilities(
@@ -795,14 +800,7 @@ class MujocoEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if mujoco is None:  # pragma: no cover
             return "the mujoco package is not installed"
-        if scene.effects.fluid or scene.fluid is not None:
-            return "MuJoCo has no grid fluid (its fluid forces are a drag model)"
-        if scene.effects.contact:
-            return "contact is not mapped yet (reserved for the contact issue)"
-        reason = super().not_applicable(scene, integrator)
-        if reason is None:
-            engine_options(scene)  # refuse unknown options as a case error, not a skip
-        return reason
+        return super().not_applicable(scene, integrator)
 
     def build(self, scene: Scene, integrator: str, dt: float) -> MujocoModel:
         """The compiled model with the scene's initial state set (also used by benchmarks)."""

@@ -826,6 +826,12 @@ class PybulletModel:
 
 class PybulletEngine(EngineBase):
     name = "pybullet"
+    effect_reasons = {**EngineBase.effect_reasons,
+                      "fluid": "PyBullet has no grid fluid"}
+
+    def check_options(self, scene: Scene) -> None:
+        engine_options(scene)  # raises CaseError on an unknown key
+
     # (global order, update under constant acceleration), read by the conformance suite.
     integrator_schemes = {"multibody": (1, "velocity_first"), "maximal": (1, "velocity_first")}
 
@@ -844,14 +850,7 @@ class PybulletEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if _p is None:  # pragma: no cover
             return "the pybullet package is not installed"
-        if scene.effects.fluid or scene.fluid is not None:
-            return "PyBullet has no grid fluid"
-        if scene.effects.contact:
-            return "contact is not mapped yet (reserved for the contact issue)"
-        reason = super().not_applicable(scene, integrator)
-        if reason is None:
-            engine_options(scene)  # unknown options are a case error, not a skip
-        return reason
+        return super().not_applicable(scene, integrator)
 
     def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
         reason = self.not_applicable(scene, integrator)

@@ -364,6 +364,12 @@ class PymunkModel:
 
 class PymunkEngine(EngineBase):
     name = "pymunk"
+    effect_reasons = {**EngineBase.effect_reasons,
+                      "fluid": "Pymunk has no grid fluid"}
+
+    def check_options(self, scene: Scene) -> None:
+        engine_options(scene)  # raises CaseError on an unknown key
+
     # (global order, update under constant acceleration), read by the conformance suite.
     integrator_schemes = {"position_first": (1, "position_first")}
 
@@ -386,14 +392,7 @@ class PymunkEngine(EngineBase):
             return "the pymunk package is not installed"
         if scene.dimension != 2:
             return "pymunk is 2D"
-        if scene.effects.fluid or scene.fluid is not None:
-            return "Pymunk has no grid fluid"
-        if scene.effects.contact:
-            return "contact is not mapped yet (reserved for the contact issue)"
-        reason = super().not_applicable(scene, integrator)
-        if reason is None:
-            engine_options(scene)  # unknown options are a case error, not a skip
-        return reason
+        return super().not_applicable(scene, integrator)
 
     def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
         reason = self.not_applicable(scene, integrator)
