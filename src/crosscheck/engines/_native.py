@@ -186,3 +186,161 @@ def mujoco_record(step, m, d, qpos, qvel, warnings, k, out_q, out_v):
             if warnings[w] != 0:
                 return i
     return out_q.shape[0]
+
+
+# -- Bullet (PyBullet's C API) ------------------------------------------------------------------
+# Bullet's client API (PhysicsClientC_API.h) passes opaque handles (pointers), ints and pointers
+# to caller-owned buffers, and returns handles or ints: one generic caller covers it. ``params``
+# spells the C parameter types, one letter each: "p" pointer (passed as an integer address),
+# "i" int; ``ret`` is "p" or "i".
+_C_TYPES = {"p": _ptr, "i": ir.IntType(32)}
+_NB_RETURN = {"p": types.intp, "i": types.int32}
+
+
+def _c_caller(ret: str, params: str):
+    """An intrinsic ``call(fn, (a, b, ...))`` calling the C function at address ``fn``."""
+
+    @intrinsic
+    def call(typingctx, fn, args):
+        if not (isinstance(fn, types.Integer) and isinstance(args, types.BaseTuple)
+                and len(args) == len(params) and all(isinstance(a, types.Integer) for a in args)):
+            return None
+
+        def codegen(context, builder, sig, llargs):
+            fnty = ir.FunctionType(_C_TYPES[ret], [_C_TYPES[c] for c in params])
+            f = builder.inttoptr(llargs[0], fnty.as_pointer())
+            values = []
+            for j, c in enumerate(params):
+                v = builder.extract_value(llargs[1], j)
+                values.append(builder.inttoptr(v, _ptr) if c == "p"
+                              else builder.trunc(v, _C_TYPES["i"]) if v.type.width > 32
+                              else builder.sext(v, _C_TYPES["i"]) if v.type.width < 32 else v)
+            out = builder.call(f, values)
+            return builder.ptrtoint(out, context.get_value_type(types.intp)) if ret == "p" \
+                else out
+
+        return _NB_RETURN[ret](fn, args), codegen
+
+    return call
+
+
+call_p_p = _c_caller("p", "p")           # b3InitStepSimulationCommand(client)
+call_p_pp = _c_caller("p", "pp")         # b3SubmitClientCommandAndWaitStatus(client, command)
+call_p_pi = _c_caller("p", "pi")         # b3RequestActualStateCommandInit(client, body)
+call_i_pi = _c_caller("i", "pi")         # b3RequestActualStateCommandCompute...(command, flag)
+call_i_p = _c_caller("i", "p")           # b3GetStatusType(status)
+call_i_p8 = _c_caller("i", "pppppppp")   # b3GetStatusActualState(status, 3 int*, 4 double**)
+call_i_ppip = _c_caller("i", "ppip")     # b3GetJointState / b3GetLinkState(client, status, i, out)
+
+
+@intrinsic
+def load_f64(typingctx, address, index):
+    """``((const double *) address)[index]``: a double from a buffer Bullet owns."""
+    if not _ints(address, index):
+        return None
+
+    def codegen(context, builder, sig, args):
+        base = builder.inttoptr(args[0], _f64.as_pointer())
+        return builder.load(builder.gep(base, [args[1]]))
+
+    return types.float64(address, index), codegen
+
+
+# fns: addresses of (b3InitStepSimulationCommand, b3SubmitClientCommandAndWaitStatus,
+# b3RequestActualStateCommandInit, b3RequestActualStateCommandComputeLinkVelocity,
+# b3RequestActualStateCommandComputeForwardKinematics, b3GetStatusActualState, b3GetJointState,
+# b3GetLinkState, b3GetStatusType). kinds: the status types Bullet answers a completed step and
+# a completed state request with (learnt from Bullet itself, see _bullet_capi).
+BULLET_OK, BULLET_STEP_FAILED, BULLET_READ_FAILED = 0, 1, 2
+# Doubles in Bullet's b3JointSensorState (9) and b3LinkState (33), with room to spare: Bullet
+# writes the whole struct, whatever this module reads of it.
+_JOINT_STATE_DOUBLES, _LINK_STATE_DOUBLES = 32, 64
+# b3LinkState: m_worldPosition[3], m_worldOrientation[4], ... m_worldAngularVelocity at 24.
+_LINK_ANGULAR_VELOCITY = 24
+
+
+@njit(cache=True, nogil=True)
+def bullet_step(fns, client, step_kind, nsteps):
+    """``nsteps`` times what ``pybullet.stepSimulation`` does. Returns BULLET_OK or
+    BULLET_STEP_FAILED (no status, or not a completed step)."""
+    for _ in range(nsteps):
+        status = call_p_pp(fns[1], (client, call_p_p(fns[0], (client,))))
+        if status == 0 or call_i_p(fns[8], (status,)) != step_kind:
+            return BULLET_STEP_FAILED
+    return BULLET_OK
+
+
+@njit(cache=True, nogil=True)
+def bullet_read(fns, client, uids, planar, read_kind, row, scratch):
+    """One sample of every body into ``row``, the adapter's raw layout (PybulletModel.read_raw).
+
+    3D and maximal bodies, 13 per body: what ``getBasePositionAndOrientation`` and
+    ``getBaseVelocity`` return (the same actual-state request, once instead of twice): centre of
+    mass, inertial-frame quaternion x, y, z, w, centre-of-mass velocity, angular velocity.
+    2D multibody (``planar``), 16 per body: the three joint positions and velocities
+    (``getJointStates``) and link 2's centre of mass, orientation and angular velocity
+    (``getLinkState(..., computeLinkVelocity=1, computeForwardKinematics=1)``), from one request
+    with both flags set. Returns BULLET_OK or BULLET_READ_FAILED.
+    """
+    pointers = scratch[:2].view(np.intp)
+    buffer = scratch[2:]
+    address = buffer.ctypes.data
+    width = 16 if planar else 13
+    for j in range(uids.shape[0]):
+        command = call_p_pi(fns[2], (client, uids[j]))
+        if planar:
+            call_i_pi(fns[3], (command, 1))
+            call_i_pi(fns[4], (command, 1))
+        status = call_p_pp(fns[1], (client, command))
+        if status == 0 or call_i_p(fns[8], (status,)) != read_kind:
+            return BULLET_READ_FAILED
+        o = j * width
+        if planar:
+            for joint in range(3):
+                if call_i_ppip(fns[6], (client, status, joint, address)) == 0:
+                    return BULLET_READ_FAILED
+                row[o + joint] = buffer[0]
+                row[o + 3 + joint] = buffer[1]
+            if call_i_ppip(fns[7], (client, status, 2, address)) == 0:
+                return BULLET_READ_FAILED
+            for c in range(7):
+                row[o + 6 + c] = buffer[c]
+            for c in range(3):
+                row[o + 13 + c] = buffer[_LINK_ANGULAR_VELOCITY + c]
+        else:
+            p = pointers.ctypes.data
+            call_i_p8(fns[5], (status, 0, 0, 0, 0, p, p + 8, 0))
+            q, qdot = pointers[0], pointers[1]
+            for c in range(7):
+                row[o + c] = load_f64(q, c)
+            for c in range(6):
+                row[o + 7 + c] = load_f64(qdot, c)
+    return BULLET_OK
+
+
+@njit(cache=True, nogil=True)
+def bullet_record(fns, client, uids, planar, kinds, k, out, scratch):
+    """Sample 0, then k steps and a sample per row of ``out`` (n_samples, N * width).
+
+    Returns (count, code): the number of valid samples (a sample with a non-finite value ends
+    the run there; sample 0, the state PyBullet was given, is always kept) and BULLET_OK, or
+    the failure code of the step or read that stopped the loop.
+    """
+    code = bullet_read(fns, client, uids, planar, kinds[1], out[0], scratch)
+    if code != BULLET_OK:
+        return 0, code
+    for i in range(1, out.shape[0]):
+        code = bullet_step(fns, client, kinds[0], k)
+        if code == BULLET_OK:
+            code = bullet_read(fns, client, uids, planar, kinds[1], out[i], scratch)
+        if code != BULLET_OK:
+            return i, code
+        for c in range(out.shape[1]):
+            if not np.isfinite(out[i, c]):
+                return i, BULLET_OK
+    return out.shape[0], BULLET_OK
+
+
+def bullet_scratch() -> np.ndarray:
+    """Work buffer for bullet_read: two pointer slots, then room for one Bullet struct."""
+    return np.zeros(2 + max(_JOINT_STATE_DOUBLES, _LINK_STATE_DOUBLES))

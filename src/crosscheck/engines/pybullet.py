@@ -306,6 +306,8 @@ class PybulletModel:
         self.dim = scene.dimension
         self.planar_joints = self.dim == 2 and not self.maximal
         self.options = engine_options(scene) if options is None else options
+        self._compiled: tuple | None = None  # (native module, api, client, uids, scratch)
+        self.native_reason = "not checked yet"  # why the compiled loop is not used
         self.cid = _p.connect(_p.DIRECT)
         if self.cid < 0:  # pragma: no cover
             raise RuntimeError("pybullet could not open a DIRECT client")
@@ -641,9 +643,15 @@ class PybulletModel:
     def advance(self, nsteps: int) -> None:
         """nsteps steps (the bare stepping loop when nothing is applied per step).
 
-        The client id goes in positionally: as a keyword PyBullet's argument parsing costs
-        0.15 us more per call, 14 % of a one-body step."""
+        Compiled (engines/_native.py, Bullet's C API) when ``compiled``; else from Python, the
+        client id positionally: as a keyword PyBullet's argument parsing costs 0.15 us more per
+        call, 14 % of a one-body step."""
         step, cid = _p.stepSimulation, self.cid
+        if self.compiled:
+            native, api, client, _, _ = self._compiled
+            if native.bullet_step(api.fns, client, api.kinds[0], nsteps) != native.BULLET_OK:
+                raise RuntimeError("pybullet: a step failed in Bullet's C API")
+            return
         if not self.forces.active:
             for _ in range(nsteps):
                 step(cid)
@@ -653,6 +661,71 @@ class PybulletModel:
             apply()
             step(cid)
 
+    # -- the compiled recorder ------------------------------------------------------------
+    def _native(self) -> tuple[tuple | None, str]:
+        """The compiled loop (engines/_native.py over Bullet's C API, engines/_bullet_capi.py)
+        if it reads what read_raw reads, bit for bit, on the current state; else (None, why)."""
+        try:
+            from crosscheck.engines import _bullet_capi, _native
+        except Exception as exc:  # pragma: no cover - numba and pyelftools are dependencies
+            return None, f"compiled loop unavailable ({type(exc).__name__}: {exc})"
+        api = _bullet_capi.api()
+        if isinstance(api, str):
+            return None, api
+        client = api.handle(self.cid)
+        if not client:  # pragma: no cover - the client is open
+            return None, f"no C client handle for physicsClientId {self.cid}"
+        uids = np.array([b.uid for b in self.bodies], np.int64)
+        row = np.empty(len(uids) * self.row_width)
+        scratch = _native.bullet_scratch()
+        code = _native.bullet_read(api.fns, client, uids, self.planar_joints, api.kinds[1], row,
+                                   scratch)
+        if code != _native.BULLET_OK:  # pragma: no cover - the bodies exist
+            return None, "a state request through Bullet's C API failed"
+        expected = np.array(self.read_raw(), float)
+        if not np.array_equal(row.view(np.uint64), expected.view(np.uint64)):
+            return None, "the compiled reader differs from PyBullet's Python functions"
+        return (_native, api, client, uids, scratch), "compiled"
+
+    def use_compiled(self, enabled: bool = True) -> bool:
+        """Check (once) and switch the compiled loop on, or off to record from Python. Returns
+        whether it is on. Call after set_initial_state; run() does."""
+        if not enabled:
+            self._compiled, self.native_reason = None, "switched off"
+            return False
+        if self._compiled is None:
+            self._compiled, self.native_reason = self._native()
+        return self.compiled
+
+    @property
+    def compiled(self) -> bool:
+        """True when stepping and recording run in the compiled loop (no per-step forces)."""
+        return self._compiled is not None and not self.forces.active
+
+    @property
+    def recording(self) -> str:
+        """How record() samples, for meta["effective"]["recording"]."""
+        if self.compiled:
+            return ("compiled loop (numba) over Bullet's C API in PyBullet's library: "
+                    "b3 step commands and one actual-state request per body and sample; the "
+                    "reads are inside wall_time")
+        why = ("forces applied per step from Python" if self.forces.active
+               else f"compiled loop unavailable: {self.native_reason}")
+        return f"python loop over PyBullet's functions ({why})"
+
+    def _record_compiled(self, n_samples: int, k: int
+                         ) -> tuple[np.ndarray, int, float, str | None]:
+        native, api, client, uids, scratch = self._compiled
+        out = np.empty((n_samples, len(uids) * self.row_width))
+        t0 = time.perf_counter()
+        count, code = native.bullet_record(api.fns, client, uids, self.planar_joints, api.kinds,
+                                           k, out, scratch)
+        stepping = time.perf_counter() - t0
+        error = {native.BULLET_OK: None,
+                 native.BULLET_STEP_FAILED: "a step command failed in Bullet's C API",
+                 native.BULLET_READ_FAILED: "a state request failed in Bullet's C API"}[code]
+        return out[:count], int(count), stepping, error
+
     def record(self, n_samples: int, k: int) -> tuple[np.ndarray, int, float, str | None]:
         """Sample the current state, then k steps and a sample, n_samples - 1 times.
 
@@ -660,12 +733,16 @@ class PybulletModel:
         seconds spent stepping, PyBullet's error message if a call raised). Samples from the
         first non-finite one on are dropped.
 
-        The loop is the cheapest this Python API allows (measurements in docs/engines.md): per
+        Compiled (``_record_compiled``) when ``compiled``: one state request per body and sample,
+        the reads inside the returned stepping time. Otherwise the Python loop below, the
+        cheapest PyBullet's Python API allows (measurements in docs/engines.md): per
         sample and body exactly the two calls ``getBasePositionAndOrientation`` and
         ``getBaseVelocity`` (~1 us each, as much as a step; no call returns both), their tuples
         kept as they come and flattened into one array after the run. Finiteness is checked
         every 64 samples and the exact first non-finite sample found afterwards.
         """
+        if self.compiled:
+            return self._record_compiled(n_samples, k)
         if self.planar_joints:
             return self._record_rows(n_samples, k)
         cid = self.cid
@@ -828,6 +905,9 @@ class PybulletEngine(EngineBase):
     name = "pybullet"
     effect_reasons = {**EngineBase.effect_reasons,
                       "fluid": "PyBullet has no grid fluid"}
+    # Record through the compiled loop over Bullet's C API when it checks out (tests switch it
+    # off to compare with PyBullet's Python functions).
+    compiled_recording = True
 
     def check_options(self, scene: Scene) -> None:
         engine_options(scene)  # raises CaseError on an unknown key
@@ -868,8 +948,10 @@ class PybulletEngine(EngineBase):
         poses = model.base_poses()
         probe = model.probe()
         model.set_initial_state(poses)
+        model.use_compiled(self.compiled_recording)
         effective, problems = model.effective()
         effective["probe"] = probe
+        effective["recording"] = model.recording
         effective["steps_per_sample"] = plan.steps_per_sample
         if not probe["neutral"]:
             problems.append(

@@ -1,0 +1,253 @@
+"""PyBullet's compiled recorder (Bullet's C API from a numba loop) against PyBullet's Python API.
+
+``engines/_bullet_capi.py`` finds Bullet's client functions and the client handle behind a
+``physicsClientId`` inside PyBullet's own library; ``engines/_native.py`` steps and reads through
+them with one state request per body and sample instead of two Python calls. It would be wrong
+if it used another client, read another body, field or link, swapped position and velocity, read
+one step early or late, or lost a blow-up or a failed call. Each test below would catch one of
+those: the trajectories of ``run()`` with the compiled loop and with PyBullet's Python functions
+must be equal bit for bit on scenes where every field moves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_recording import SPINNERS_3D as _SPINNERS_3D
+
+from crosscheck.engines import _bullet_capi, _native, get_engine
+from crosscheck.engines import pybullet as pb
+from crosscheck.engines.base import sampling_plan
+from crosscheck.scene.loader import load_case_text
+
+# No velocity component of any body is zero (in the shared scene the second body's are).
+SPINNERS_3D = _SPINNERS_3D.replace("velocity = [0.0, 0.3, 1.0]", "velocity = [0.2, 0.3, 1.0]"
+                                   ).replace("[0.5, 0.0, -2.0]", "[0.5, 0.7, -2.0]")
+
+PLATES_2D = """
+[case]
+name = "two-plates-free"
+dimension = 2
+[run]
+duration = 0.5
+dt = 1e-3
+sample_every = 0.007
+[effects]
+gravity = [0.0, -9.81]
+[[bodies]]
+name = "a"
+shape = { box = { size = [0.3, 0.1] } }
+mass = 1.5
+com = [0.04, -0.03]
+position = [0.2, 1.0]
+orientation = 0.4
+velocity = [1.0, -0.5]
+angular_velocity = 3.0
+[[bodies]]
+name = "b"
+shape = { circle = { radius = 0.1 } }
+mass = 0.7
+com = [0.01, 0.02]
+position = [0.6, 0.8]
+velocity = [0.3, 0.2]
+angular_velocity = -2.0
+"""
+
+# Gravity so strong that the state turns non-finite within the run (dt = 1 s, a sample every 3
+# steps). Gravity is Bullet's own: nothing is applied from Python, so these are scenes the
+# compiled loop records.
+# * multibody, g = 1e152: v_n = n g dt passes sqrt(DBL_MAX) = 1.34e154 at step 135; its square,
+#   which btMultiBody forms during the next step, overflows: step 136 is the first non-finite;
+# * maximal, g = 1e304: btRigidBody does not square v; the position x_n = g dt^2 n (n + 1) / 2
+#   (semi-implicit Euler) passes DBL_MAX = 1.8e308 at step 190.
+OVERFLOW_3D = """
+[case]
+name = "overflow"
+dimension = 3
+[run]
+duration = 900.0
+dt = 1.0
+sample_every = 3.0
+[effects]
+gravity = [0.0, 0.0, -{g}]
+[[bodies]]
+name = "a"
+shape = {{ sphere = {{ radius = 0.1 }} }}
+mass = 1.0
+position = [0.0, 0.0, 0.0]
+angular_velocity = [0.0, 0.0, 0.1]
+"""
+_BIG = np.finfo(float).max
+OVERFLOW_STEP = {"multibody": (1e152, int(np.sqrt(_BIG) / 1e152) + 2),
+                 "maximal": (1e304, next(n for n in range(1, 10**4)
+                                         if n * (n + 1) // 2 * 1e304 > _BIG))}
+
+
+def _both(text: str, integrator: str):
+    """run() with the compiled loop, then with PyBullet's Python functions."""
+    scene = load_case_text(text)
+    engine = get_engine("pybullet")
+    fast = engine.run(scene, integrator, scene.run.dt)
+    engine.compiled_recording = False
+    try:
+        slow = engine.run(scene, integrator, scene.run.dt)
+    finally:
+        engine.compiled_recording = True
+    return scene, fast, slow
+
+
+def _assert_equal(scene, fast, slow) -> None:
+    for name in ("t", "com", "vel", "omega", "quat" if scene.dimension == 3 else "angle"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name), err_msg=name)
+    for name, value in slow.extras.items():  # 2D: the out-of-plane drift
+        np.testing.assert_array_equal(fast.extras[name], value, err_msg=name)
+
+
+@pytest.mark.parametrize(("text", "integrator"), [(SPINNERS_3D, "multibody"),
+                                                  (SPINNERS_3D, "maximal"),
+                                                  (PLATES_2D, "multibody"),
+                                                  (PLATES_2D, "maximal")],
+                         ids=["3d-multibody", "3d-maximal", "2d-planar-joints", "2d-maximal"])
+def test_compiled_recorder_equals_python_functions(text, integrator):
+    scene, fast, slow = _both(text, integrator)
+    assert fast.meta["effective"]["recording"].startswith("compiled loop")
+    assert slow.meta["effective"]["recording"].startswith("python loop")
+    assert fast.failure is None and slow.failure is None
+    assert len(fast.t) == sampling_plan(scene, scene.run.dt).n_samples
+    # Every position and orientation component moves and no velocity is zero, in both bodies,
+    # so a swapped body or field, or a sample read a step early, changes bits.
+    assert np.all(np.ptp(fast.com, axis=0) > 1e-3)
+    assert np.all(fast.vel != 0.0) and np.all(fast.omega != 0.0)
+    if scene.dimension == 3:
+        assert np.all(np.ptp(fast.quat, axis=0) > 1e-3)
+    else:
+        assert np.all(np.ptp(fast.angle, axis=0) > 0.5)
+    _assert_equal(scene, fast, slow)
+
+
+@pytest.mark.parametrize("integrator", ["multibody", "maximal"])
+def test_compiled_recorder_stops_at_the_same_overflow(integrator):
+    g, first_bad_step = OVERFLOW_STEP[integrator]
+    scene, fast, slow = _both(OVERFLOW_3D.format(g=g), integrator)
+    assert fast.meta["effective"]["recording"].startswith("compiled loop")
+    plan = sampling_plan(scene, scene.run.dt)
+    assert slow.failure is not None and slow.failure["reason"] == "non-finite state"
+    assert fast.failure == slow.failure
+    assert len(fast.t) == len(slow.t) < plan.n_samples
+    # Kept: the samples taken before the first non-finite step (every third step from 0).
+    assert len(fast.t) == -(-first_bad_step // 3)
+    _assert_equal(scene, fast, slow)
+
+
+def test_a_failed_bullet_call_is_a_reported_failure_with_its_time(monkeypatch):
+    # Bullet answers every step with a status type; the loop requires the one learnt on the
+    # scratch client. Requiring another makes the first step "fail": the run must come back as
+    # a failure at that sample's time, with the samples before it, not raise.
+    real = _bullet_capi.api()
+    assert isinstance(real, _bullet_capi.BulletApi)
+    wrong = _bullet_capi.BulletApi(real.fns, real.clients, real.max_clients,
+                                   np.array([real.kinds[0] + 1000, real.kinds[1]]))
+    monkeypatch.setattr(_bullet_capi, "api", lambda: wrong)
+    scene = load_case_text(SPINNERS_3D)
+    traj = get_engine("pybullet").run(scene, "multibody", scene.run.dt)
+    assert traj.failure is not None
+    assert traj.failure["reason"] == "pybullet error: a step command failed in Bullet's C API"
+    assert traj.failure["time"] == 0.007 and len(traj.t) == 1
+
+
+def test_without_the_c_api_the_adapter_records_from_python(monkeypatch):
+    monkeypatch.setattr(_bullet_capi, "api", lambda: "no symbol table (test)")
+    scene = load_case_text(SPINNERS_3D)
+    traj = get_engine("pybullet").run(scene, "maximal", scene.run.dt)
+    assert traj.meta["effective"]["recording"] == (
+        "python loop over PyBullet's functions (compiled loop unavailable: no symbol table "
+        "(test))")
+    assert traj.failure is None and len(traj.t) == sampling_plan(scene, scene.run.dt).n_samples
+
+
+def test_per_step_forces_keep_the_python_loop():
+    # Springs are evaluated in Python before every step: no compiled loop can take them.
+    from test_recording import SPRINGS_2D
+
+    scene = load_case_text(SPRINGS_2D)
+    traj = get_engine("pybullet").run(scene, "maximal", scene.run.dt)
+    assert traj.meta["effective"]["recording"] == (
+        "python loop over PyBullet's functions (forces applied per step from Python)")
+
+
+def test_each_client_id_maps_to_its_own_handle():
+    import pybullet as p
+
+    api = _bullet_capi.api()
+    assert isinstance(api, _bullet_capi.BulletApi)
+    a, b = p.connect(p.DIRECT), p.connect(p.DIRECT)
+    try:
+        ha, hb = api.handle(a), api.handle(b)
+        assert ha and hb and ha != hb
+        # The handle holds the client's bodies: one body in b, none in a.
+        p.createMultiBody(1.0, physicsClientId=b)
+        count = _native_num_bodies()
+        assert (count(ha), count(hb)) == (p.getNumBodies(physicsClientId=a),
+                                          p.getNumBodies(physicsClientId=b)) == (0, 1)
+    finally:
+        p.disconnect(physicsClientId=a)
+        p.disconnect(physicsClientId=b)
+    assert api.handle(b) == 0  # a closed client's slot is cleared
+    assert api.handle(-1) == api.handle(api.max_clients) == 0
+
+
+def _native_num_bodies():
+    import ctypes
+
+    import pybullet as p
+
+    lib = ctypes.CDLL(p.__file__)
+    fn = lib.b3GetNumBodies
+    fn.argtypes, fn.restype = [ctypes.c_void_p], ctypes.c_int
+    return fn
+
+
+def test_a_symbol_table_of_another_build_is_refused(monkeypatch):
+    # The library's load address must come out the same from every function the loop calls:
+    # a symbol table read from another build than the one loaded would not.
+    real = _bullet_capi._symbols
+
+    def shifted(path, names):
+        found = real(path, names)
+        name = _bullet_capi.FUNCTIONS[3]
+        value, size, kind = found[name]
+        found[name] = (value + 16, size, kind)
+        return found
+
+    monkeypatch.setattr(_bullet_capi, "_symbols", shifted)
+    assert _bullet_capi.api.__wrapped__() == (
+        "PyBullet's symbol table does not match the loaded library")
+
+
+def test_a_stripped_library_is_refused(monkeypatch):
+    monkeypatch.setattr(_bullet_capi, "_symbols", lambda path, names: {})
+    reason = _bullet_capi.api.__wrapped__()
+    assert isinstance(reason, str) and "sPhysicsClients1" in reason
+
+
+def test_the_model_checks_its_reader_against_pythons_before_using_it(monkeypatch):
+    # A reader that put the velocity where the position goes must never be used.
+    scene = load_case_text(SPINNERS_3D)
+    real = _native.bullet_read
+
+    def swapped(fns, client, uids, planar, kind, row, scratch):
+        code = real(fns, client, uids, planar, kind, row, scratch)
+        row[0:3], row[7:10] = row[7:10].copy(), row[0:3].copy()
+        return code
+
+    monkeypatch.setattr(_native, "bullet_read", swapped)
+    model = pb.PybulletModel(scene, "multibody", scene.run.dt)
+    try:
+        poses = model.base_poses()
+        model.probe()
+        model.set_initial_state(poses)
+        assert not model.use_compiled()
+        assert model.native_reason == (
+            "the compiled reader differs from PyBullet's Python functions")
+    finally:
+        model.close()
