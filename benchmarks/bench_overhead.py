@@ -4,9 +4,9 @@ For every registered adapter that can run a case, and each integrator the case l
 
 * **bare**: the adapter's own model advanced through all of the run's steps with nothing read
   back, by the fastest stepping loop the adapter itself uses (MuJoCo: one ``mj_step(m, d,
-  nstep=N)`` call; Pymunk: the compiled ``cpSpaceStep`` loop; PyBullet: ``stepSimulation(cid)``
-  per step from Python, plus the disconnect, which costs more after stepping), minus the same
-  with no steps;
+  nstep=N)`` call; Pymunk: the compiled ``cpSpaceStep`` loop; PyBullet: the compiled loop of
+  Bullet step commands through its C API, ``_native.bullet_step``, plus the disconnect, which
+  costs more after stepping), minus the same with no steps;
 * **recorded loop**: CPU time of ``engine.run(scene, integrator, dt)`` minus that of the same
   run cut to one sample: model build and settings read-back cancel, what remains is stepping
   between samples, copying each sample and converting them all into the Trajectory.
@@ -18,6 +18,11 @@ repeats run until a time budget is spent.
 Cases: ``free-flight`` (one body, centre of mass off its origin, full inertia, spinning at 150
 rad/s for 1 s: the conformance suite's scene), ``tennis-racket`` (cases/rigid3d/tennis_racket.toml,
 20 s) and, for 2D-only engines, ``free-flight-2d`` (a plate spinning at 150 rad/s for 1 s).
+
+Variants: an adapter's alternative recorders, one extra row each on the case's first
+integrator, each against its own bare loop: MuJoCo's ``stepping`` engine options, PyBullet's
+recorder from Python (``PybulletEngine.compiled_recording = False``; bare: ``stepSimulation(cid)``
+per step from Python, the loop that recorder steps with).
 
 Then, to show where a 10 % target can hold and where it cannot:
 
@@ -38,6 +43,7 @@ machine; the committed ones say which machine.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -45,9 +51,11 @@ import platform
 import statistics
 import sys
 import time
-from collections.abc import Callable
-from dataclasses import replace
+from collections.abc import Callable, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -180,7 +188,10 @@ def _bare_mujoco(scene, integrator, dt, steps):
     return CLOCK() - t0
 
 
-def _bare_pybullet(scene, integrator, dt, steps):
+def _bare_pybullet(scene, integrator, dt, steps, compiled=True):
+    """compiled: the adapter's compiled loop of Bullet step commands (``_native.bullet_step``),
+    the loop ``run()`` steps and records with; else ``stepSimulation(cid)`` per step from
+    Python, the loop of the Python recorder."""
     from crosscheck.engines.pybullet import PybulletModel
 
     model = PybulletModel(scene, integrator, dt)
@@ -188,6 +199,9 @@ def _bare_pybullet(scene, integrator, dt, steps):
         poses = model.base_poses()
         model.probe()
         model.set_initial_state(poses)
+        # Untimed, as in run(): checks the compiled reader against PyBullet's (once per model).
+        if model.use_compiled(compiled) != compiled:
+            raise RuntimeError(f"pybullet: compiled loop unavailable ({model.native_reason})")
         t0 = CLOCK()
         model.advance(steps)
     except BaseException:
@@ -209,11 +223,47 @@ def _bare_pymunk(scene, integrator, dt, steps):
     return CLOCK() - t0
 
 
-# Extra rows: an adapter's alternative recorders, measured on the case's first integrator.
-VARIANTS: dict[str, list[tuple[str, dict]]] = {
-    "mujoco": [("stepping=rollout", {"stepping": "rollout"}),
-               ("stepping=nstep", {"stepping": "nstep"})],
+@dataclass(frozen=True)
+class Variant:
+    """An adapter's alternative recorder: an extra row on the case's first integrator.
+
+    ``options`` go to the engine through the scene (``[engine_options.<engine>]``);
+    ``attributes`` are set on the engine instance for the variant's runs and restored after
+    (a switch that is not a case option, such as PyBullet's ``compiled_recording``); ``bare``
+    is the bare stepper the variant is compared with (default: the engine's, BARE)."""
+
+    label: str
+    options: Mapping[str, Any] = field(default_factory=dict)
+    attributes: Mapping[str, Any] = field(default_factory=dict)
+    bare: Callable[[Scene, str, float, int], float] | None = None
+
+
+VARIANTS: dict[str, list[Variant]] = {
+    "mujoco": [Variant("stepping=rollout", options={"stepping": "rollout"}),
+               Variant("stepping=nstep", options={"stepping": "nstep"})],
+    # The recorder from Python against the loop it steps with, stepSimulation(cid) per step.
+    "pybullet": [Variant("recording=python", attributes={"compiled_recording": False},
+                         bare=functools.partial(_bare_pybullet, compiled=False))],
 }
+
+
+@contextmanager
+def _engine_attributes(engine, attributes: Mapping[str, Any]):
+    """Set attributes on the engine instance; afterwards restore what the instance had (or
+    remove them again, so the class attribute shows through)."""
+    missing = object()
+    saved = {name: engine.__dict__.get(name, missing) for name in attributes}
+    try:
+        for name, value in attributes.items():
+            setattr(engine, name, value)
+        yield engine
+    finally:
+        for name, value in saved.items():
+            if value is missing:
+                engine.__dict__.pop(name, None)
+            else:
+                setattr(engine, name, value)
+
 
 BARE: dict[str, Callable[[Scene, str, float, int], float]] = {
     "mujoco": _bare_mujoco,
@@ -230,20 +280,26 @@ def _run_cpu(engine, scene, integrator, dt):
 
 
 def measure(engine, scene: Scene, integrator: str, budget: float, min_repeats: int,
-            max_repeats: int) -> dict:
+            max_repeats: int, bare_fn: Callable[[Scene, str, float, int], float] | None = None
+            ) -> dict:
     """CPU time of the recorded loop = run(full) - run(one sample, no steps): what the two
     share (model build, settings read-back) cancels; what remains is stepping in chunks, the
     per-sample copies and the conversion of every sample. Minimum over interleaved repeats
-    (the least disturbed estimate, as timeit recommends)."""
+    (the least disturbed estimate, as timeit recommends). ``bare_fn``: the bare stepper
+    (default: the engine's, BARE)."""
     dt = scene.run.dt
     plan = sampling_plan(scene, dt)
     empty = replace(scene, run=replace(scene.run, duration=0.0))
-    bare_fn = BARE.get(engine.name)
+    if bare_fn is None:
+        bare_fn = BARE.get(engine.name)
     full, base, bare, bare0, in_run = [], [], [], [], []
     # Warm-up: imports, JIT, caches.
-    engine.run(scene, integrator, dt)
+    warm = engine.run(scene, integrator, dt)
     if bare_fn is not None:
-        bare_fn(scene, integrator, dt, plan.total_steps)
+        try:
+            bare_fn(scene, integrator, dt, plan.total_steps)
+        except RuntimeError as exc:  # e.g. the compiled loop this row is about is unavailable
+            return {"error": str(exc)}
     start = time.perf_counter()
     while (len(full) < min_repeats or time.perf_counter() - start < budget) \
             and len(full) < max_repeats:
@@ -267,6 +323,9 @@ def measure(engine, scene: Scene, integrator: str, budget: float, min_repeats: i
         "loop_cpu_s": loop,
         "in_run_recording_over_stepping_median": statistics.median(in_run),
     }
+    recording = warm.meta.get("effective", {}).get("recording")
+    if recording is not None:  # how the adapter recorded (PyBullet: compiled or Python, why)
+        out["recording"] = recording
     if bare:
         # What a bare run with no steps still pays inside the timed region (a call, a
         # disconnect) cancels, as the one-sample run cancels it on the recorded side.
@@ -308,28 +367,95 @@ def _min_interleaved(fns: dict[str, Callable[[], float]], budget: float,
 
 
 def _floor_row(engine: str, path: str, n: int, step_s: float, calls: int, sample_s: float,
-               note: str = "") -> dict:
+               note: str = "", adapter: bool = False, integrator: str | None = None) -> dict:
     """step_s: CPU seconds per step (all n bodies); sample_s: extra seconds per sample for the
-    reads; calls: engine calls a sample needs beyond the stepping."""
+    reads; calls: engine calls a sample needs beyond the stepping. adapter: the path the
+    adapter records with (for ``integrator``, None: any), whose floor the sweeps quote."""
     floor = sample_s / (K * step_s)
     return {"engine": engine, "path": path, "bodies": n, "step_us": step_s * 1e6,
             "calls_per_sample": calls, "per_call_us": sample_s / calls * 1e6 if calls else None,
             "per_sample_us": sample_s * 1e6, "floor_at_k10": floor,
-            "k_for_10pct": max(1, math.ceil(sample_s / (TARGET * step_s))), "note": note}
+            "k_for_10pct": max(1, math.ceil(sample_s / (TARGET * step_s))), "note": note,
+            "adapter": adapter, "integrator": integrator}
+
+
+@functools.cache
+def _bullet_comparison_loops():
+    """Two compiled loops for the comparison figures of the PyBullet floors (numba, built on
+    first use), each SAMPLES x (k step commands, then per body one command round trip):
+
+    * ``commands``: a trivial command, the one ``init(client)`` makes
+      (b3InitRequestPhysicsParamCommand: the server copies a few parameters);
+    * ``requests``: the actual-state request the adapter's reader sends, submitted and its
+      answer not read out.
+
+    Both return how many answers had the expected status type (a check that they ran)."""
+    from numba import njit
+
+    from crosscheck.engines import _native
+
+    step, call_p_p, call_p_pp = _native.bullet_step, _native.call_p_p, _native.call_p_pp
+    call_p_pi, call_i_p = _native.call_p_pi, _native.call_i_p
+
+    @njit(nogil=True)
+    def commands(fns, client, step_kind, init, kind, k, samples, calls):
+        good = 0
+        for _ in range(samples):
+            step(fns, client, step_kind, k)
+            for _ in range(calls):
+                status = call_p_pp(fns[1], (client, call_p_p(init, (client,))))
+                good += call_i_p(fns[8], (status,)) == kind
+        return good
+
+    @njit(nogil=True)
+    def requests(fns, client, step_kind, uids, kind, k, samples):
+        good = 0
+        for _ in range(samples):
+            step(fns, client, step_kind, k)
+            for j in range(uids.shape[0]):
+                status = call_p_pp(fns[1], (client, call_p_pi(fns[2], (client, uids[j]))))
+                good += call_i_p(fns[8], (status,)) == kind
+        return good
+
+    return commands, requests
 
 
 def _pybullet_costs(integrator: str, n: int, budget: float) -> dict[str, float]:
+    """CPU seconds of SAMPLES x K steps of n free bodies, without and with each path's reads.
+
+    Python path: ``stepSimulation(cid)`` per step (``keyword``: the client id as a keyword),
+    then per body one or both getters. Compiled (the adapter's loop, engines/_native.py):
+    ``bullet_step`` alone, ``bullet_record`` (one actual-state request per body and sample,
+    read out), and the two comparison loops of _bullet_comparison_loops."""
+    import ctypes
+
     import pybullet as p
 
+    from crosscheck.engines import _bullet_capi, _native
     from crosscheck.engines.pybullet import PybulletModel
 
     model = PybulletModel(many_bodies(n, 3), integrator, 1e-3)
     try:
         poses = model.base_poses()
         model.probe()
+        model.set_initial_state(poses)
+        if not model.use_compiled():  # also proves the compiled reader equals PyBullet's
+            raise RuntimeError(f"pybullet: compiled loop unavailable ({model.native_reason})")
         cid, uids = model.cid, [b.uid for b in model.bodies]
         step, pose, vel = p.stepSimulation, p.getBasePositionAndOrientation, p.getBaseVelocity
         steps = range(K)
+        api = _bullet_capi.api()
+        fns, client, kinds = api.fns, api.handle(cid), api.kinds
+        native_uids = np.array(uids, np.int64)
+        out = np.empty((SAMPLES + 1, n * model.row_width))
+        scratch = _native.bullet_scratch()
+        commands, requests = _bullet_comparison_loops()
+        init = ctypes.cast(ctypes.CDLL(p.__file__).b3InitRequestPhysicsParamCommand,
+                           ctypes.c_void_p).value
+        command_kind = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(int(fns[8]))(
+            ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)(int(fns[1]))(
+                client, ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_void_p)(init)(client)))
+        answered: dict[str, int] = {}
 
         def bare():
             t0 = CLOCK()
@@ -362,9 +488,44 @@ def _pybullet_costs(integrator: str, n: int, budget: float) -> dict[str, float]:
                     vel(u, cid)
             return CLOCK() - t0
 
-        return _min_interleaved({"bare": bare, "keyword": bare_keyword, "one": one_read,
-                                 "two": two_reads}, budget,
-                                reset=lambda: model.set_initial_state(poses))
+        def compiled_bare():
+            t0 = CLOCK()
+            code = _native.bullet_step(fns, client, kinds[0], K * SAMPLES)
+            cpu = CLOCK() - t0
+            answered["compiled_bare"] = int(code == _native.BULLET_OK)
+            return cpu
+
+        def compiled_record():
+            # Sample 0, then SAMPLES x (K steps, one sample): SAMPLES + 1 reads.
+            t0 = CLOCK()
+            count, code = _native.bullet_record(fns, client, native_uids, False, kinds, K,
+                                                out, scratch)
+            cpu = CLOCK() - t0
+            answered["compiled_record"] = int(count == SAMPLES + 1 and code == _native.BULLET_OK)
+            return cpu
+
+        def compiled_requests():
+            t0 = CLOCK()
+            good = requests(fns, client, kinds[0], native_uids, kinds[1], K, SAMPLES)
+            cpu = CLOCK() - t0
+            answered["compiled_requests"] = int(good == SAMPLES * n)
+            return cpu
+
+        def compiled_commands():
+            t0 = CLOCK()
+            good = commands(fns, client, kinds[0], init, command_kind, K, SAMPLES, n)
+            cpu = CLOCK() - t0
+            answered["compiled_commands"] = int(good == SAMPLES * n)
+            return cpu
+
+        t = _min_interleaved({"bare": bare, "keyword": bare_keyword, "one": one_read,
+                              "two": two_reads, "cbare": compiled_bare, "crec": compiled_record,
+                              "creq": compiled_requests, "ccmd": compiled_commands}, budget,
+                             reset=lambda: model.set_initial_state(poses))
+        failed = sorted(name for name, ok in answered.items() if not ok)
+        if failed:
+            raise RuntimeError(f"pybullet floors: Bullet did not answer as expected in {failed}")
+        return t
     finally:
         model.close()
 
@@ -373,15 +534,28 @@ def floors_pybullet(n: int, budget: float) -> list[dict]:
     rows = []
     for integrator in ("multibody", "maximal"):
         t = _pybullet_costs(integrator, n, budget)
+        cstep_s = t["cbare"] / (K * SAMPLES)
+        # bullet_record reads sample 0 too: SAMPLES + 1 reads.
+        csample_s = (t["crec"] - t["cbare"]) / (SAMPLES + 1)
+        request_s = (t["creq"] - t["cbare"]) / (SAMPLES * n)
+        command_s = (t["ccmd"] - t["cbare"]) / (SAMPLES * n)
+        rows.append(_floor_row(
+            "pybullet", f"{integrator}, compiled loop (adapter): b3 step command per step; one "
+            "actual-state request per body, read out", n, cstep_s, n, csample_s,
+            note=f"per body: the request alone (not read out) {request_s * 1e6:.3f} us; a "
+                 f"trivial command round trip (b3InitRequestPhysicsParamCommand + submit) "
+                 f"{command_s * 1e6:.3f} us",
+            adapter=True, integrator=integrator))
         step_s = t["bare"] / (K * SAMPLES)
         pose_s = (t["one"] - t["bare"]) / (SAMPLES * n)
         vel_s = (t["two"] - t["one"]) / (SAMPLES * n)
         rows.append(_floor_row(
-            "pybullet", f"{integrator}: stepSimulation(cid) per step; getBasePositionAndOrientation"
-            " + getBaseVelocity per body", n, step_s, 2 * n, (t["two"] - t["bare"]) / SAMPLES,
+            "pybullet", f"{integrator}, python: stepSimulation(cid) per step; "
+            "getBasePositionAndOrientation + getBaseVelocity per body", n, step_s, 2 * n,
+            (t["two"] - t["bare"]) / SAMPLES,
             note=f"per call: pose {pose_s * 1e6:.2f} us, velocity {vel_s * 1e6:.2f} us; a "
                  f"keyword client id costs {(t['keyword'] - t['bare']) / (K * SAMPLES) * 1e6:.2f}"
-                 " us more per step"))
+                 " us more per step", integrator=integrator))
     return rows
 
 
@@ -475,7 +649,8 @@ def floors_pymunk(n: int, budget: float) -> list[dict]:
                           "pr": cffi_rec, "sb": public_bare}, budget)
     return [
         _floor_row("pymunk", "compiled loop: cpSpaceStep and 4 C getters per body (adapter)",
-                   n, t["cb"] / (K * SAMPLES), 4 * n, (t["cr"] - t["cb"]) / SAMPLES),
+                   n, t["cb"] / (K * SAMPLES), 4 * n, (t["cr"] - t["cb"]) / SAMPLES,
+                   adapter=True),
         _floor_row("pymunk", "python: cpSpaceStep through cffi, 4 C getters per body via cffi",
                    n, t["pb"] / (K * SAMPLES), 4 * n, (t["pr"] - t["pb"]) / SAMPLES,
                    note=f"Space.step costs {t['sb'] / (K * SAMPLES) * 1e6:.2f} us per step; "
@@ -524,9 +699,10 @@ def floors_mujoco(n: int, budget: float) -> list[dict]:
     step_s = t["bare"] / (K * SAMPLES)
     return [
         _floor_row("mujoco", "compiled loop: mj_step x k, qpos/qvel copied (adapter, euler)", n,
-                   step_s, 0, (t["compiled"] - t["bare"]) / SAMPLES),
+                   step_s, 0, (t["compiled"] - t["bare"]) / SAMPLES, adapter=True,
+                   integrator="euler"),
         _floor_row("mujoco", "python: mj_step(m, d, k) + mj_getState per sample (euler)", n,
-                   step_s, 2, (t["nstep"] - t["bare"]) / SAMPLES),
+                   step_s, 2, (t["nstep"] - t["bare"]) / SAMPLES, integrator="euler"),
     ]
 
 
@@ -541,9 +717,8 @@ def _predicted(floor_rows: list[dict], engine: str, integrator: str, n: int, k: 
                ) -> float | None:
     """The adapter path's floor at k steps per sample (reads / stepping; conversion aside)."""
     for row in floor_rows:
-        if row["engine"] != engine or row["bodies"] != n:
-            continue
-        if row["path"].startswith(integrator + ":") or "(adapter" in row["path"]:
+        if (row["engine"] == engine and row["bodies"] == n and row["adapter"]
+                and row["integrator"] in (None, integrator)):
             return row["per_sample_us"] / (k * row["step_us"])
     return None
 
@@ -639,7 +814,11 @@ def markdown(result: dict) -> str:
     lines += ["", "\"Per sample\" spreads the overhead over the recorded samples (it also "
               "holds per-run costs a one-sample run skips, such as converting many samples "
               "instead of one). `(stepping=...)` rows are MuJoCo's alternative recorders, kept "
-              "as engine options. Pymunk is 2D only: its case is the 2D free flight.", ""]
+              "as engine options. `(recording=python)` rows are PyBullet's recorder through "
+              "its Python functions (`PybulletEngine.compiled_recording = False`; the adapter "
+              "falls back to it when the compiled loop is unavailable or forces are applied "
+              "per step), against the loop it steps with, `stepSimulation(cid)` per step from "
+              "Python. Pymunk is 2D only: its case is the 2D free flight.", ""]
 
     floors = result.get("floors") or []
     if floors:
@@ -651,7 +830,9 @@ def markdown(result: dict) -> str:
             "the reads; the difference per sample is the reads' cost (per call: divided by the "
             "calls). floor = per-sample cost / (k x per-step cost): the overhead no recorder on "
             "that path can go below (the Trajectory conversion comes on top). \"k for 10 %\" "
-            "is the smallest number of steps per sample at which the floor is under 10 %.",
+            "is the smallest number of steps per sample at which the floor is under 10 %. "
+            "\"(adapter)\" marks the path the adapter records with; the others are its "
+            "fallbacks or the alternatives it replaced.",
             "",
             "| engine | path | N | per step us | calls per sample | per call us | per sample us "
             "| floor at k = 10 | k for 10 % | note |",
@@ -672,8 +853,8 @@ def markdown(result: dict) -> str:
             "the number of substeps per call from an internal time accumulator that PyBullet "
             "does not report, so a dropped step would go unnoticed):",
             "",
-            "| integrator | per step, single steps us | per step, substeps us | bit-identical "
-            "on free flight |",
+            "| integrator | per step, single steps (stepSimulation from Python) us | per step, "
+            "substeps us | bit-identical on free flight |",
             "|---|---|---|---|",
         ]
         for r in substeps:
@@ -738,13 +919,14 @@ def main(argv: list[str] | None = None) -> int:
         for scene in cases():
             integrators = scene.integrators_for(name) or (
                 engine.capabilities().default_integrator,)
-            runs = [(integrator, scene, "") for integrator in integrators]
+            runs = [(integrator, scene, None) for integrator in integrators]
             runs += [(integrators[0], replace(scene, engine_options={
-                **scene.engine_options, name: {**scene.engine_options.get(name, {}), **opts}}),
-                label) for label, opts in VARIANTS.get(name, [])]
-            for integrator, scene, label in runs:
-                base = {"engine": name, "case": scene.name,
-                        "integrator": integrator + (f" ({label})" if label else ""),
+                **scene.engine_options,
+                name: {**scene.engine_options.get(name, {}), **variant.options}}), variant)
+                for variant in VARIANTS.get(name, [])]
+            for integrator, scene, variant in runs:
+                label = f" ({variant.label})" if variant is not None else ""
+                base = {"engine": name, "case": scene.name, "integrator": integrator + label,
                         "dt": scene.run.dt, "sample_every": scene.run.sample_every}
                 reason = engine.not_applicable(scene, integrator)
                 if reason is not None:
@@ -752,8 +934,10 @@ def main(argv: list[str] | None = None) -> int:
                         continue  # the 2D case is there for 2D-only engines
                     rows.append(base | {"not_applicable": reason})
                     continue
-                row = base | measure(engine, scene, integrator, args.budget, args.min_repeats,
-                                     args.max_repeats)
+                with _engine_attributes(engine, variant.attributes if variant else {}):
+                    row = base | measure(engine, scene, integrator, args.budget,
+                                         args.min_repeats, args.max_repeats,
+                                         variant.bare if variant else None)
                 rows.append(row)
                 shown = (f"{row['overhead']:+.1%}" if row.get("overhead") is not None
                          else row.get("error", "in-run only"))
