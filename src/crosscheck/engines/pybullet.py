@@ -13,6 +13,11 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
+* Recording: a compiled loop (engines/_native.py) steps and reads through Bullet's C client API
+  in PyBullet's own library, with the client PyBullet opened (engines/_bullet_capi.py): the same
+  commands PyBullet's functions submit, one state request per body and sample instead of two,
+  checked bit for bit against ``read_raw`` before use. PyBullet's Python functions record when
+  that is unavailable or forces are applied per step from Python.
 * ``createMultiBody`` places the link frame, ``resetBasePositionAndOrientation`` the inertial frame
   (ENGINES.md trap 2): the adapter places bodies with the former and restores the pose PyBullet
   itself reported with the latter.
