@@ -112,14 +112,17 @@ def _prune(root: Path, max_age: float = 86400.0) -> None:
 
 class CaseFile(pytest.File):
     def collect(self):
-        from crosscheck.runner.plan import build_matrix
+        from crosscheck.runner.plan import build_matrix, check_integrators
         from crosscheck.scene.loader import load_case
 
         config = self.config
-        scene = load_case(self.path)
+        refs = _engine_refs(config)
+        # A misspelt integrator in the case is a collection error here, like any broken field.
+        scene = load_case(self.path, unchecked_engines=refs)
+        integrators = _split(config.getoption("--crosscheck-integrators"))
+        check_integrators(integrators, refs, option="--crosscheck-integrators")
         matrix = build_matrix([scene], engines=_split(config.getoption("--crosscheck-engines")),
-                              integrators=_split(config.getoption("--crosscheck-integrators")),
-                              engine_refs=_engine_refs(config),
+                              integrators=integrators, engine_refs=refs,
                               reference_dir=_reference_dir(config))
         references = {t["id"]: t for t in matrix.references}
         multi_dt = len({t["dt"] for t in matrix.cells}) > 1

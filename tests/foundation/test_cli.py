@@ -55,6 +55,11 @@ BAD = {
                    "bodies[0].orientation", "a unit quaternion"),
     "no-bodies": (GOOD.format(name="x").split("[[bodies]]")[0], "bodies",
                   "at least one [[bodies]] entry"),
+    "integrator": (GOOD.format(name="x").replace(
+        'engines = ["inhouse", "mujoco"]',
+        'engines = ["inhouse", "mujoco"]\nintegrators = { mujoco = ["rk5"] }'),
+        "run.integrators.mujoco[0]",
+        "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete']"),
 }
 
 
@@ -195,6 +200,53 @@ def test_show_bad_file_exits_2_with_one_error_line(kind, tmp_path, capsys):
         code, out, err = run_main(argv, capsys)
         assert code == 2 and out == ""
         assert_one_error_line(err, f, field, expected)
+
+
+def test_list_with_a_misspelt_integrator_exits_2(tmp_path, capsys):
+    write(tmp_path, "good.toml", GOOD.format(name="good-one"))
+    bad = write(tmp_path, "typo.toml", BAD["integrator"][0])
+    code, out, _ = run_main(["list", str(tmp_path), "--json"], capsys)
+    assert code == 2
+    data = json.loads(out)
+    assert [c["name"] for c in data["cases"]] == ["good-one"]
+    (error,) = data["errors"]
+    assert error["error"].startswith(f"{bad}: run.integrators.mujoco[0]: expected an "
+                                     "integrator of mujoco")
+
+
+# -- run and sweep: a misspelt integrator is an input error, not a "not applicable" cell ----------
+def test_run_with_a_misspelt_integrator_in_the_case_exits_2(tmp_path, capsys):
+    text, field, expected = BAD["integrator"]
+    f = write(tmp_path, "typo.toml", text)
+    for extra in ([], ["--json"]):
+        code, out, err = run_main(["run", str(f), "--out", str(tmp_path / "out"),
+                                   "--workers", "1", *extra], capsys)
+        assert code == 2 and out == ""
+        assert_one_error_line(err, f, field, expected)
+    assert not (tmp_path / "out").exists()  # refused before anything ran
+
+
+@pytest.mark.parametrize(("command", "value", "message"), [
+    ("run", "rk5", "error: --integrators: no engine has an integrator 'rk5'; known: inhouse: "
+                   "rk4, rk4_exp, explicit_euler"),
+    ("run", "mujoco.rk5", "error: --integrators: mujoco has no integrator 'rk5'; its "
+                          "integrators: euler, rk4, implicit, implicitfast, discrete"),
+    ("run", "inhouse.euler", "error: --integrators: inhouse has no integrator 'euler'"),
+    ("run", "mujocoo.rk4", "error: --integrators: 'mujocoo.rk4' is not 'engine.integrator' "
+                           "with a known engine (inhouse, mujoco, pybullet, pymunk)"),
+    ("sweep", "verlett", "error: --integrators: no engine has an integrator 'verlett'"),
+    ("sweep", "pybullet.rk4", "error: --integrators: pybullet has no integrator 'rk4'; its "
+                              "integrators: multibody, maximal"),
+])
+def test_an_unknown_integrator_option_exits_2(command, value, message, tmp_path, capsys):
+    f = write(tmp_path, "good.toml", GOOD.format(name="g"))
+    argv = [command, str(f), "--integrators", f"rk4,{value}", "--out", str(tmp_path / "out"),
+            "--workers", "1"]
+    code, out, err = run_main(argv, capsys)
+    assert code == 2 and "Traceback" not in err
+    (line,) = err.splitlines()
+    assert line.startswith(message), line
+    assert not (tmp_path / "out").exists()
 
 
 def test_show_missing_file(tmp_path, capsys):

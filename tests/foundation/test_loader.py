@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from toml_writer import to_toml  # tests/foundation/toml_writer.py
 
+from crosscheck.engines.names import INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.errors import CaseError
 from crosscheck.scene import massprops
 from crosscheck.scene.loader import find_cases, is_case_file, load_case, load_case_text
@@ -449,6 +450,112 @@ def test_tolerance_precedence_engine_integrator_then_integrator_then_engine_then
     assert tol["o"].limit("mujoco", "rk4") == 0.5 and tol["o"].overrides == {}
 
 
+# -- integrator names -----------------------------------------------------------------------------
+# A misspelt integrator used to load and then run as a "not applicable" cell: a regression gate
+# passed without the check it was asked for. Names are now checked at load against
+# crosscheck.engines.names.INTEGRATOR_NAMES (kept equal to the adapters' by
+# test_integrator_names.py); whether a known name applies to the scene stays a run-time verdict.
+@pytest.mark.parametrize("engine", ENGINE_NAMES)
+def test_a_misspelt_integrator_is_refused_under_every_engine(engine):
+    known = INTEGRATOR_NAMES[engine]
+    case = base3d()
+    case["run"]["integrators"] = {"inhouse": ["rk4"], engine: [known[0], known[0] + "x"]}
+    exc = refused(case, f"run.integrators.{engine}[1]", f"an integrator of {engine}, one of")
+    assert exc.got == known[0] + "x"
+    # The message lists that engine's names, and only those.
+    assert exc.expected == f"an integrator of {engine}, one of {list(known)}"
+    assert str(exc) == (f"{NAME}: run.integrators.{engine}[1]: expected an integrator of "
+                        f"{engine}, one of {list(known)}, got {known[0] + 'x'!r} (str)")
+
+
+def test_every_known_integrator_of_every_engine_loads():
+    case = base3d()
+    case["run"]["engines"] = list(ENGINE_NAMES)
+    case["run"]["integrators"] = {e: list(n) for e, n in INTEGRATOR_NAMES.items()}
+    case["tolerances"] = {"m": {"default": 1.0, **{f"{e}.{n}": 2.0 for e, names
+                                                   in INTEGRATOR_NAMES.items() for n in names}},
+                          "n": {n: 1.0 for n in all_integrator_names()}}
+    s = load(case)
+    assert s.run.integrators == INTEGRATOR_NAMES
+    assert s.tolerances["m"].limit("pymunk", "position_first") == 2.0
+    assert s.tolerances["n"].limit("pybullet", "maximal") == 1.0
+
+
+def test_a_known_integrator_that_does_not_apply_still_loads_and_is_not_applicable_at_run_time():
+    # A fluid scheme on a rigid case and Pymunk (2D only) on a 3D case are names the engines
+    # know: the case loads and the adapter says why it cannot run them.
+    from crosscheck.engines import get_engine
+
+    case = base3d()
+    case["run"]["integrators"] = {"inhouse": ["maccormack"], "pymunk": ["position_first"]}
+    s = load(case)
+    assert s.run.integrators["inhouse"] == ("maccormack",)
+    reason = get_engine("inhouse").not_applicable(s, "maccormack")
+    assert reason and "maccormack" in reason
+    assert get_engine("pymunk").not_applicable(s, "position_first") == "pymunk is 2D"
+
+
+def test_reference_integrator_names():
+    case = base3d()
+    for kind, integrator in (("fine-step", "dop853"), ("fine-step", "DOP853"),
+                             ("fine-step", "RK4"), ("fine-step", "verlet")):
+        case["reference"] = {"kind": kind, "integrator": integrator}
+        # fine-step runs the lower-cased name (crosscheck.compare.reference), on inhouse
+        assert load(case).reference.integrator == integrator
+    case["reference"] = {"kind": "fine-step", "engine": "mujoco", "integrator": "implicitfast"}
+    assert load(case).reference.engine == "mujoco"
+    case["reference"] = {"kind": "fine-step", "engine": "mujoco", "integrator": "verlet"}
+    exc = refused(case, "reference.integrator", "an integrator of mujoco, one of ['euler'")
+    assert "'dop853'" in exc.expected  # fine-step also accepts SciPy's DOP853
+    case["reference"] = {"kind": "engine", "engine": "pybullet", "integrator": "maximal"}
+    assert load(case).reference.integrator == "maximal"
+    case["reference"] = {"kind": "engine", "engine": "pybullet", "integrator": "maximum"}
+    exc = refused(case, "reference.integrator", "an integrator of pybullet")
+    assert exc.expected == "an integrator of pybullet, one of ['multibody', 'maximal']"
+    # Kinds that run no engine ignore the integrator; it must still be some engine's name.
+    case["reference"] = {"kind": "analytic", "solution": "free_fall", "integrator": "euler"}
+    assert load(case).reference.integrator == "euler"
+
+
+def test_tolerance_keys_name_known_integrators():
+    case = base3d()
+    case["tolerances"] = {"m": {"rk4": 1.0, "mujoco": 2.0, "semi_lagrangian": 3.0,
+                                "pybullet.multibody": 4.0}}
+    assert load(case).tolerances["m"].limit("pybullet", "multibody") == 4.0
+    case["tolerances"] = {"m": {"default": 1.0, "inhouse.euler": 1.0}}  # MuJoCo's, not ours
+    exc = refused(case, 'tolerances.m."inhouse.euler"', "an integrator of inhouse, one of")
+    assert exc.got == "unknown key 'inhouse.euler'"
+    case["tolerances"] = {"m": {"default": 1.0, "verlett": 1.0}}
+    exc = refused(case, "tolerances.m.verlett", "an engine name")
+    for name in ("verlet", "euler", "multibody", "position_first", "maccormack"):
+        assert repr(name) in exc.expected
+
+
+def test_unchecked_engines_accept_the_names_of_an_adapter_standing_in_for_them():
+    # crosscheck run --engine-ref inhouse=module:Class: the stand-in brings its own names.
+    case = base3d()
+    case["run"]["integrators"] = {"inhouse": ["exact"], "mujoco": ["rk4"]}
+    case["reference"] = {"kind": "fine-step", "engine": "inhouse", "integrator": "exact"}
+    case["tolerances"] = {"m": {"exact": 1.0, "inhouse.exact": 2.0}}
+    text = to_toml(case)
+    s = load_case_text(text, name=NAME, base_dir=CASES / "rigid3d", unchecked_engines={"inhouse"})
+    assert s.run.integrators["inhouse"] == ("exact",)
+    assert s.tolerances["m"].limit("inhouse", "exact") == 2.0
+    case["reference"] = {"kind": "none", "integrator": "exact"}  # no engine: any may know it
+    load_case_text(to_toml(case), name=NAME, base_dir=CASES / "rigid3d",
+                   unchecked_engines={"inhouse"})
+    del case["reference"]["integrator"]
+    with pytest.raises(CaseError) as info:  # without it, the name is refused
+        load_case_text(text, name=NAME, base_dir=CASES / "rigid3d")
+    assert info.value.field == "run.integrators.inhouse[0]"
+    # Other engines are still checked.
+    case["run"]["integrators"]["mujoco"] = ["exact"]
+    with pytest.raises(CaseError) as info:
+        load_case_text(to_toml(case), name=NAME, base_dir=CASES / "rigid3d",
+                       unchecked_engines={"inhouse"})
+    assert info.value.field == "run.integrators.mujoco[0]"
+
+
 # -- immutability ---------------------------------------------------------------------------------
 def _arrays(obj, path="scene"):
     if isinstance(obj, np.ndarray):
@@ -597,6 +704,12 @@ BAD_3D = [
     (setting("run.integrators", {"mujoco": "rk4"}), "run.integrators.mujoco",
      "an array of strings"),
     (setting("run.integrators", ["rk4"]), "run.integrators", "a table"),
+    (setting("run.integrators.mujoco", ["euler", "rk5"]), "run.integrators.mujoco[1]",
+     "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete']"),
+    (setting("run.integrators.mujoco", ["verlet"]), "run.integrators.mujoco[0]",
+     "an integrator of mujoco"),  # an in-house name is not one of MuJoCo's
+    (setting("run.integrators.inhouse", ["RK4"]), "run.integrators.inhouse[0]",
+     "an integrator of inhouse"),  # names are case-sensitive, as the adapters compare them
     (setting("run.timeout", 0), "run.timeout", "a positive number"),
     # [materials], [ground]
     (setting("materials.rubber.friction", -0.1), "materials.rubber.friction", "non-negative"),
@@ -762,6 +875,14 @@ BAD_3D = [
     (setting("reference.engine", "bullet"), "reference.engine", "one of"),
     (setting("reference.dt", 0.0), "reference.dt", "a positive number in s"),
     (setting("reference.params", 3), "reference.params", "a table"),
+    (setting("reference.integrator", "rk5"), "reference.integrator",
+     "an integrator of inhouse, one of ['rk4'"),
+    (setting("reference", {"kind": "engine", "engine": "mujoco", "integrator": "verlet"}),
+     "reference.integrator", "an integrator of mujoco"),
+    (setting("reference", {"kind": "engine", "engine": "inhouse", "integrator": "dop853"}),
+     "reference.integrator", "an integrator of inhouse"),  # DOP853 is a fine-step reference
+    (setting("reference", {"kind": "none", "integrator": "rk5"}), "reference.integrator",
+     "an integrator name of some engine"),
     (setting("reference.params.omega", math.nan), "reference.params.omega", "a finite number"),
     (setting("reference.params.list", [1.0, math.inf]), "reference.params.list[1]",
      "a finite number"),
@@ -781,6 +902,12 @@ BAD_3D = [
      'tolerances.energy_drift."mujcoo.euler"', "'engine.integrator' with an engine in"),
     (setting("tolerances.energy_drift", {"default": 1.0, "mujoco.": 1.0}),
      'tolerances.energy_drift."mujoco."', "'engine.integrator'"),
+    (setting("tolerances.energy_drift", {"default": 1.0, "mujoco.rk5": 1.0}),
+     'tolerances.energy_drift."mujoco.rk5"', "'mujoco.integrator' with an integrator of mujoco"),
+    (setting("tolerances.energy_drift", {"default": 1.0, "pybullet.rk4": 1.0}),
+     'tolerances.energy_drift."pybullet.rk4"', "one of ['multibody', 'maximal']"),
+    (setting("tolerances.energy_drift", {"default": 1.0, "rk5": 1.0}),
+     "tolerances.energy_drift.rk5", "an integrator name of some engine"),
     # [engine_options], top level
     (setting("engine_options", {"bullet": {}}), "engine_options.bullet", "an engine name"),
     (setting("engine_options.pybullet", 5), "engine_options.pybullet", "a table"),

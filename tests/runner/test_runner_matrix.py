@@ -22,7 +22,7 @@ from crosscheck_fakes import ALL
 from crosscheck.runner.local import LocalBackend
 from crosscheck.runner.plan import UsageError, build_matrix
 from crosscheck.runner.session import run_and_report
-from crosscheck.scene.loader import load_case
+from crosscheck.scene import loader
 from crosscheck.state import Trajectory
 
 HERE = Path(__file__).resolve().parent
@@ -68,6 +68,12 @@ def refs(**names) -> dict[str, str]:
     return {engine: ALL[kind] for engine, kind in names.items()}
 
 
+def load_case(path: Path, engine_refs: dict[str, str]):
+    """The fakes stand in for engines with integrator names of their own ("exact", "euler"),
+    which the loader accepts only for the engines they replace (as ``crosscheck run`` does)."""
+    return loader.load_case(path, unchecked_engines=engine_refs)
+
+
 def by_id(outcome):
     return {c["id"]: c for c in outcome.doc["cells"]}
 
@@ -78,9 +84,9 @@ def test_every_failure_mode_is_one_cells_result(tmp_path):
                                   'pybullet = ["exact"], pymunk = ["exact"] }', timeout=3)
     other = write_case(tmp_path, "more", engines='["inhouse", "mujoco"]',
                        integrators='{ inhouse = ["exact"], mujoco = ["exact"] }', timeout=3)
-    matrix = build_matrix([load_case(case), load_case(other)], out=tmp_path / "out",
-                          engine_refs=refs(inhouse="exact", mujoco="crash", pybullet="hang",
-                                           pymunk="raise"))
+    er = refs(inhouse="exact", mujoco="crash", pybullet="hang", pymunk="raise")
+    matrix = build_matrix([load_case(case, er), load_case(other, er)], out=tmp_path / "out",
+                          engine_refs=er)
     start = time.monotonic()
     outcome = run_and_report(matrix, LocalBackend(2), tmp_path / "out")
     elapsed = time.monotonic() - start
@@ -115,8 +121,8 @@ def test_blowup_and_unimportable_engine(tmp_path):
     case = write_case(tmp_path, "bad", engines='["inhouse", "mujoco"]',
                       integrators='{ inhouse = ["exact"], mujoco = ["exact"] }',
                       reference='kind = "none"')
-    matrix = build_matrix([load_case(case)], out=tmp_path / "out",
-                          engine_refs=refs(inhouse="blowup", mujoco="missing"))
+    er = refs(inhouse="blowup", mujoco="missing")
+    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", engine_refs=er)
     outcome = run_and_report(matrix, LocalBackend(1), tmp_path / "out")
     cells = by_id(outcome)
     blow = cells["bad::inhouse-exact@dt=0.01"]
@@ -133,8 +139,8 @@ def test_a_failed_reference_makes_its_cells_errors_with_the_reason(tmp_path):
                       integrators='{ inhouse = ["exact"] }',
                       reference='kind = "fine-step"\nengine = "mujoco"\nintegrator = "exact"\n'
                                 'dt = 0.001')
-    matrix = build_matrix([load_case(case)], out=tmp_path / "out",
-                          engine_refs=refs(inhouse="exact", mujoco="raise"))
+    er = refs(inhouse="exact", mujoco="raise")
+    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", engine_refs=er)
     outcome = run_and_report(matrix, LocalBackend(1), tmp_path / "out")
     cell = by_id(outcome)["noref::inhouse-exact@dt=0.01"]
     assert cell["status"] == "error"
@@ -144,8 +150,9 @@ def test_a_failed_reference_makes_its_cells_errors_with_the_reason(tmp_path):
 
 def test_save_trajectories_writes_the_design_layout(tmp_path):
     case = write_case(tmp_path, "save", reference='kind = "none"', tolerances="")
-    matrix = build_matrix([load_case(case)], out=tmp_path / "out", save_trajectories=True,
-                          engine_refs=refs(inhouse="exact"), dts=[0.01, 0.005])
+    er = refs(inhouse="exact")
+    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", save_trajectories=True,
+                          engine_refs=er, dts=[0.01, 0.005])
     outcome = run_and_report(matrix, LocalBackend(2), tmp_path / "out")
     assert len(outcome.cells) == 4
     path = tmp_path / "out" / "trajectories" / "save" / "inhouse-euler-dt0.005.npz"
@@ -156,10 +163,10 @@ def test_save_trajectories_writes_the_design_layout(tmp_path):
 
 
 def test_matrix_filters_and_overrides(tmp_path):
+    er = refs(inhouse="exact", mujoco="exact")
     scene = load_case(write_case(tmp_path, "m", engines='["inhouse", "mujoco"]',
                                  integrators='{ inhouse = ["exact", "euler"] }',
-                                 reference='kind = "none"', tolerances=""))
-    er = refs(inhouse="exact", mujoco="exact")
+                                 reference='kind = "none"', tolerances=""), er)
     ids = [t["id"] for t in build_matrix([scene], engine_refs=er).cells]
     # mujoco lists no integrators: its adapter's default (the fake's first) is used.
     assert ids == ["m::inhouse-exact@dt=0.01", "m::inhouse-euler@dt=0.01",
@@ -238,8 +245,8 @@ def test_workers_over_their_memory_cap_are_replaced(tmp_path):
     case = write_case(tmp_path, "recycle", integrators='{ inhouse = ["exact", "euler", '
                                                        '"fast_spin"] }', reference='kind = "none"',
                       tolerances="")
-    matrix = build_matrix([load_case(case)], out=tmp_path / "out",
-                          engine_refs=refs(inhouse="exact"))
+    er = refs(inhouse="exact")
+    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", engine_refs=er)
     backend = LocalBackend(1, max_worker_rss_mb=1.0)  # every worker is over 1 MiB
     outcome = run_and_report(matrix, backend, tmp_path / "out")
     assert [c["status"] for c in outcome.cells] == ["pass"] * 3

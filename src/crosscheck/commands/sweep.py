@@ -79,8 +79,8 @@ def _run(args) -> tuple[int, dict]:
 
     if not Path(args.case).is_file():
         raise UsageError(f"{args.case}: no such case file")
-    scene = load_case(args.case)
     refs = _engine_refs(args.engine_ref)
+    scene = load_case(args.case, unchecked_engines=refs)
     dts = parse_dts(args.dts) or [scene.run.dt * f for f in (4, 2, 1, 0.5, 0.25, 0.125)]
     engines = parse_list(args.engines)
     integrators = parse_list(args.integrators) or _all_integrators(scene, engines, refs)

@@ -27,18 +27,20 @@ from typing import Any
 
 import numpy as np
 
-_SCENES: dict[tuple[str, float], Any] = {}
+_SCENES: dict[tuple[str, float, frozenset[str]], Any] = {}
 
 
-def load_scene(path: str):
-    """Load a case file once per process (keyed by path and modification time)."""
+def load_scene(path: str, engine_refs: dict[str, str] | None = None):
+    """Load a case file once per process (keyed by path, modification time and the engines
+    replaced through ``engine_refs``, whose integrator names the loader leaves unchecked)."""
     from crosscheck.scene.loader import load_case
 
-    key = (str(path), os.path.getmtime(path))
+    unchecked = frozenset(engine_refs or {})
+    key = (str(path), os.path.getmtime(path), unchecked)
     if key not in _SCENES:
         if len(_SCENES) > 64:
             _SCENES.clear()
-        _SCENES[key] = load_case(path)
+        _SCENES[key] = load_case(path, unchecked_engines=unchecked)
     return _SCENES[key]
 
 
@@ -111,7 +113,7 @@ def _execute_reference(task: dict[str, Any]) -> dict[str, Any]:
     from crosscheck.compare.reference import compute_reference
 
     result = base_result(task)
-    scene = load_scene(task["case_file"])
+    scene = load_scene(task["case_file"], task.get("engine_refs"))
     traj = compute_reference(scene, task["spec"],
                              get_engine=lambda n: resolve_engine(n, task.get("engine_refs")))
     if traj.failure:
@@ -126,7 +128,7 @@ def _execute_reference(task: dict[str, Any]) -> dict[str, Any]:
 def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
     result = base_result(task)
     engine_name, integrator, dt = task["engine"], task["integrator"], float(task["dt"])
-    scene = load_scene(task["case_file"])
+    scene = load_scene(task["case_file"], task.get("engine_refs"))
     result["case_sha256"] = scene.source_sha256
     try:
         engine = resolve_engine(engine_name, task.get("engine_refs"))

@@ -69,6 +69,34 @@ def parse_dts(text: str | None) -> list[float] | None:
     return out
 
 
+def check_integrators(requested: list[str] | None, engine_refs: dict[str, str] | None,
+                      option: str = "--integrators") -> None:
+    """Refuse ``--integrators`` entries no engine knows: a misspelt name would only turn into
+    "not applicable" cells and a run that passes without the check it was asked for.
+
+    ``engine.integrator`` needs a known engine with that integrator; a plain name must be an
+    integrator of some engine. Engines replaced through ``engine_refs`` (adapters under
+    development) bring their own names, so theirs are not checked, nor are plain names then.
+    """
+    from crosscheck.engines import engine_names
+    from crosscheck.engines.names import INTEGRATOR_NAMES, all_integrator_names
+
+    refs = set(engine_refs or {})
+    known_engines = sorted(set(engine_names()) | refs)
+    for entry in requested or []:
+        engine, dot, name = entry.partition(".")
+        if dot:
+            if engine not in known_engines or not name:
+                raise UsageError(f"{option}: {entry!r} is not 'engine.integrator' with a known "
+                                 f"engine ({', '.join(known_engines)})")
+            if engine not in refs and name not in INTEGRATOR_NAMES.get(engine, ()):
+                raise UsageError(f"{option}: {engine} has no integrator {name!r}; its "
+                                 f"integrators: {', '.join(INTEGRATOR_NAMES.get(engine, ()))}")
+        elif not refs and entry not in all_integrator_names():
+            known = "; ".join(f"{e}: {', '.join(n)}" for e, n in INTEGRATOR_NAMES.items())
+            raise UsageError(f"{option}: no engine has an integrator {entry!r}; known: {known}")
+
+
 def _integrators_for(scene, engine_name: str, requested: list[str] | None,
                      engine_refs: dict[str, str] | None) -> list[str]:
     if requested:
@@ -110,6 +138,7 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
     for name in engines or []:
         if name not in known:
             raise UsageError(f"--engines: unknown engine {name!r}; known: {sorted(known)}")
+    check_integrators(integrators, engine_refs)
     names = {}
     for scene in scenes:
         if scene.name in names:

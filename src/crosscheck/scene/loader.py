@@ -10,11 +10,13 @@ from __future__ import annotations
 import difflib
 import hashlib
 import tomllib
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from crosscheck.engines.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.errors import CaseError
 from crosscheck.rotations import axis_angle_to_quat
 from crosscheck.scene import massprops
@@ -46,8 +48,14 @@ REFERENCE_KINDS = ("analytic", "table", "fine-step", "engine", "none")
 QUATERNION_UNIT_TOLERANCE = 1e-6  # |q| may differ from 1 by this much (then it is normalised)
 
 
-def load_case(path: str | Path) -> Scene:
-    """Read and validate one case file."""
+def load_case(path: str | Path, *, unchecked_engines: Collection[str] = ()) -> Scene:
+    """Read and validate one case file.
+
+    Integrator names are checked against :data:`crosscheck.engines.names.INTEGRATOR_NAMES`,
+    except those of ``unchecked_engines``: engines an adapter under development stands in for
+    (``--engine-ref``), which brings integrator names of its own; a name it does not know is then
+    "not applicable" when the case runs.
+    """
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -57,13 +65,16 @@ def load_case(path: str | Path) -> Scene:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise CaseError(path, "", "a UTF-8 text file") from None
-    return _load(text, path, path.parent, hashlib.sha256(data).hexdigest())
+    return _load(text, path, path.parent, hashlib.sha256(data).hexdigest(),
+                 frozenset(unchecked_engines))
 
 
-def load_case_text(text: str, name: str = "<text>", base_dir: str | Path = ".") -> Scene:
-    """Load a case from a TOML string (tests, generated cases); mesh paths resolve in base_dir."""
+def load_case_text(text: str, name: str = "<text>", base_dir: str | Path = ".", *,
+                   unchecked_engines: Collection[str] = ()) -> Scene:
+    """Load a case from a TOML string (tests, generated cases); mesh paths resolve in base_dir.
+    ``unchecked_engines`` as in :func:`load_case`."""
     digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    return _load(text, Path(name), Path(base_dir), digest)
+    return _load(text, Path(name), Path(base_dir), digest, frozenset(unchecked_engines))
 
 
 def is_case_file(path: str | Path) -> bool:
@@ -89,7 +100,8 @@ def find_cases(paths: list[str | Path]) -> list[Path]:
 
 
 # -- the whole file -------------------------------------------------------------------------------
-def _load(text: str, file: Path, base_dir: Path, digest: str) -> Scene:
+def _load(text: str, file: Path, base_dir: Path, digest: str,
+          unchecked: frozenset[str] = frozenset()) -> Scene:
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -107,7 +119,7 @@ def _load(text: str, file: Path, base_dir: Path, digest: str) -> Scene:
         raise case.error("dimension", "2 or 3", dimension)
     case.done()
 
-    run = _run(top.sub("run"))
+    run = _run(top.sub("run"), unchecked)
     materials = _materials(top.sub("materials", {}))
     has_fluid = top.has("fluid")
     fluid = None
@@ -125,8 +137,8 @@ def _load(text: str, file: Path, base_dir: Path, digest: str) -> Scene:
 
     effects = _effects(top.sub("effects", {}), dimension, names, has_fluid)
     ground = _ground(top.sub("ground"), dimension, materials) if top.has("ground") else None
-    reference = _reference(top.sub("reference", {}))
-    tolerances = _tolerances(top.sub("tolerances", {}))
+    reference = _reference(top.sub("reference", {}), unchecked)
+    tolerances = _tolerances(top.sub("tolerances", {}), unchecked)
     engine_options = _engine_options(top.sub("engine_options", {}))
     top.done()
 
@@ -146,7 +158,7 @@ def _fluid(fields: Fields, dimension: int) -> Any:
 
 
 # -- sections -------------------------------------------------------------------------------------
-def _run(f: Fields) -> RunSettings:
+def _run(f: Fields, unchecked: frozenset[str]) -> RunSettings:
     duration = f.number("duration", positive=True, unit="s")
     dt = f.number("dt", positive=True, unit="s")
     if dt > duration:
@@ -169,6 +181,14 @@ def _run(f: Fields) -> RunSettings:
             names = table.string_list(engine)
             if not names:
                 raise table.error(engine, "at least one integrator name")
+            if engine not in unchecked:
+                # A misspelt name would only show up as a "not applicable" cell, and a
+                # regression gate would pass without the check it was asked for.
+                known = INTEGRATOR_NAMES[engine]
+                for i, name in enumerate(names):
+                    if name not in known:
+                        raise CaseError(f.file, f"{table.field(engine)}[{i}]",
+                                        f"an integrator of {engine}, one of {list(known)}", name)
             integrators[engine] = names
         table.done()
     timeout = f.number("timeout", 600.0, positive=True, unit="s")
@@ -515,7 +535,7 @@ def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground
     return ground
 
 
-def _reference(f: Fields) -> Reference:
+def _reference(f: Fields, unchecked: frozenset[str]) -> Reference:
     kind = f.string("kind", "none", choices=REFERENCE_KINDS)
     ref = Reference(
         kind=kind,
@@ -531,8 +551,33 @@ def _reference(f: Fields) -> Reference:
     if kind in required and getattr(ref, required[kind]) is None:
         raise CaseError(f.file, f.field(required[kind]),
                         f"this field, required when reference.kind = {kind!r}")
+    if ref.integrator is not None:
+        _check_reference_integrator(f, ref, unchecked)
     f.done()
     return ref
+
+
+def _check_reference_integrator(f: Fields, ref: Reference, unchecked: frozenset[str]) -> None:
+    """The integrator must be one the reference's engine has (fine-step: also 'dop853'). Kinds
+    that run no engine (analytic, table, none) ignore it; there it must merely be a name some
+    engine knows, unless reference.engine names the engine."""
+    engine = ref.engine or ("inhouse" if ref.kind == "fine-step" else None)
+    if engine in unchecked or (engine is None and unchecked):
+        return  # a stand-in adapter brings names of its own
+    if engine is None:
+        known = all_integrator_names()
+        expected = f"an integrator name of some engine, one of {list(known)}"
+    else:
+        known = INTEGRATOR_NAMES[engine]
+        expected = f"an integrator of {engine}, one of {list(known)}"
+    name = ref.integrator
+    if ref.kind == "fine-step":
+        # crosscheck.compare.reference runs the fine-step integrator by its lower-case name.
+        name = name.lower()
+        known = known + FINE_STEP_ONLY
+        expected += f", or {' or '.join(map(repr, FINE_STEP_ONLY))} (SciPy's DOP853)"
+    if name not in known:
+        raise f.error("integrator", expected, ref.integrator)
 
 
 def _free_form(f: Fields, key: str) -> dict[str, Any]:
@@ -557,7 +602,7 @@ def _check_plain(value: Any, file: Path, field: str) -> None:
         raise CaseError(file, field, "a number, string, boolean, array or table", value)
 
 
-def _tolerances(f: Fields) -> dict[str, Tolerance]:
+def _tolerances(f: Fields, unchecked: frozenset[str]) -> dict[str, Tolerance]:
     out = {}
     for metric in list(f.table):
         value = f.raw(metric)
@@ -567,11 +612,7 @@ def _tolerances(f: Fields) -> dict[str, Tolerance]:
             default = sub.number("default", None, nonnegative=True)
             overrides = {k: sub.number(k, nonnegative=True) for k in value if k != "default"}
             for key in overrides:
-                engine, dot, integrator = key.partition(".")
-                if dot and (engine not in ENGINE_NAMES or not integrator):
-                    raise sub.error(key, "default, an engine name, an integrator name or "
-                                    f"'engine.integrator' with an engine in {list(ENGINE_NAMES)}",
-                                    f"unknown key {key!r}")
+                _check_override_key(sub, key, unchecked)
             sub.done()
             if default is None and not overrides:
                 raise CaseError(f.file, field, "a limit, or a table with default and overrides")
@@ -581,6 +622,25 @@ def _tolerances(f: Fields) -> dict[str, Tolerance]:
             out[metric] = Tolerance(metric=metric, default=limit)
     f.done()
     return out
+
+
+def _check_override_key(sub: Fields, key: str, unchecked: frozenset[str]) -> None:
+    """An override names an engine, an integrator some engine has, or 'engine.integrator' with
+    an integrator of that engine: a misspelt key would silently never apply."""
+    engine, dot, integrator = key.partition(".")
+    if dot:
+        if engine not in ENGINE_NAMES or not integrator:
+            raise sub.error(key, "default, an engine name, an integrator name or "
+                            f"'engine.integrator' with an engine in {list(ENGINE_NAMES)}",
+                            f"unknown key {key!r}")
+        if engine not in unchecked and integrator not in INTEGRATOR_NAMES[engine]:
+            raise sub.error(key, f"'{engine}.integrator' with an integrator of {engine}, one of "
+                            f"{list(INTEGRATOR_NAMES[engine])}", f"unknown key {key!r}")
+    elif key not in ENGINE_NAMES and key not in all_integrator_names() and not unchecked:
+        # (With an engine unchecked, its stand-in adapter may know the name.)
+        raise sub.error(key, f"default, an engine name {list(ENGINE_NAMES)}, an integrator name "
+                        f"of some engine {list(all_integrator_names())} or 'engine.integrator'",
+                        f"unknown key {key!r}")
 
 
 def _engine_options(f: Fields) -> dict[str, dict[str, Any]]:
