@@ -117,7 +117,12 @@ def sign_continuous(q: np.ndarray) -> np.ndarray:
     # is negative: so its sign is the parity of the negative raw dots since the last zero (or NaN)
     # dot, where the sequential rule restarts at +1.
     dots = np.sum(q[1:] * q[:-1], axis=-1)
-    if np.all(dots > 0):  # the usual case: nothing to flip
+    negative = dots < 0
+    if not negative.any():  # the usual case: nothing to flip (zero and NaN dots restart at +1)
+        return q
+    if (negative | (dots > 0)).all():  # no restart after t = 0: the parity of the flips so far
+        flip = np.cumsum(negative, axis=0) % 2 == 1
+        q[1:][flip] *= -1.0
         return q
     neg = np.concatenate([np.zeros_like(dots[:1], dtype=int), (dots < 0).astype(int)])
     restart = np.concatenate([np.ones_like(dots[:1], dtype=bool), ~((dots < 0) | (dots > 0))])

@@ -214,6 +214,27 @@ def test_sign_continuous_flips_each_body_independently():
     np.testing.assert_array_equal(flipped, given)  # the input is not modified
 
 
+def _sign_continuous_sequential(q):
+    """The rule itself, one sample at a time: flip i when its dot with the (already signed)
+    sample i-1 is negative."""
+    out = np.array(q, float, copy=True)
+    for i in range(1, len(out)):
+        d = np.sum(out[i] * out[i - 1], axis=-1)
+        out[i][d < 0] *= -1.0
+    return out
+
+
+@pytest.mark.parametrize("restarts", [False, True], ids=["flips-only", "zero-and-nan-dots"])
+def test_sign_continuous_equals_the_sequential_rule(restarts):
+    q = RNG.normal(size=(300, 3, 4))
+    if restarts:  # a zero dot (orthogonal neighbours) and a NaN sample restart the rule at +1
+        q[50, 0] = [0.0, 0.0, 0.0, 0.0]
+        q[120, 1] = [q[119, 1, 1], -q[119, 1, 0], q[119, 1, 3], -q[119, 1, 2]]
+        q[200, 2] = np.nan
+    expected = _sign_continuous_sequential(q)
+    np.testing.assert_array_equal(sign_continuous(q), expected)
+
+
 def test_angle_to_matrix():
     np.testing.assert_allclose(angle_to_matrix(math.pi / 2) @ [1.0, 0.0], [0.0, 1.0], atol=1e-16)
     r = angle_to_matrix(0.3)
