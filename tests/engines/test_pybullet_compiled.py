@@ -11,6 +11,8 @@ must be equal bit for bit on scenes where every field moves.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from test_recording import SPINNERS_3D as _SPINNERS_3D
@@ -18,7 +20,9 @@ from test_recording import SPINNERS_3D as _SPINNERS_3D
 from crosscheck.engines import _bullet_capi, _native, get_engine
 from crosscheck.engines import pybullet as pb
 from crosscheck.engines.base import sampling_plan
-from crosscheck.scene.loader import load_case_text
+from crosscheck.scene.loader import load_case, load_case_text
+
+ROOT = Path(__file__).resolve().parents[2]
 
 # No velocity component of any body is zero (in the shared scene the second body's are).
 SPINNERS_3D = _SPINNERS_3D.replace("velocity = [0.0, 0.3, 1.0]", "velocity = [0.2, 0.3, 1.0]"
@@ -85,7 +89,10 @@ OVERFLOW_STEP = {"multibody": (1e152, int(np.sqrt(_BIG) / 1e152) + 2),
 
 def _both(text: str, integrator: str):
     """run() with the compiled loop, then with PyBullet's Python functions."""
-    scene = load_case_text(text)
+    return _both_scene(load_case_text(text), integrator)
+
+
+def _both_scene(scene, integrator: str):
     engine = get_engine("pybullet")
     fast = engine.run(scene, integrator, scene.run.dt)
     engine.compiled_recording = False
@@ -145,7 +152,7 @@ def test_a_failed_bullet_call_is_a_reported_failure_with_its_time(monkeypatch):
     # a failure at that sample's time, with the samples before it, not raise.
     real = _bullet_capi.api()
     assert isinstance(real, _bullet_capi.BulletApi)
-    wrong = _bullet_capi.BulletApi(real.fns, real.clients, real.max_clients,
+    wrong = _bullet_capi.BulletApi(real.fns, real.force_fns, real.clients, real.max_clients,
                                    np.array([real.kinds[0] + 1000, real.kinds[1]]))
     monkeypatch.setattr(_bullet_capi, "api", lambda: wrong)
     scene = load_case_text(SPINNERS_3D)
@@ -165,14 +172,74 @@ def test_without_the_c_api_the_adapter_records_from_python(monkeypatch):
     assert traj.failure is None and len(traj.t) == sampling_plan(scene, scene.run.dt).n_samples
 
 
-def test_per_step_forces_keep_the_python_loop():
-    # Springs are evaluated in Python before every step: no compiled loop can take them.
+SPRINGS_DRAG_LOADS_3D = _SPINNERS_3D.replace("[[bodies]]", """
+[[effects.springs]]
+a = "a"
+attach_a = [0.05, 0.02, -0.04]
+anchor = [0.0, 1.0, 1.5]
+stiffness = 50.0
+damping = 0.3
+rest_length = 0.5
+[[effects.springs]]
+a = "a"
+b = "b"
+attach_a = [-0.1, 0.0, 0.03]
+attach_b = [0.02, -0.03, 0.01]
+stiffness = 30.0
+damping = 0.1
+[[effects.drag]]
+linear = 0.2
+angular = 0.01
+bodies = ["b"]
+[[effects.loads]]
+body = "a"
+force = [0.5, -0.2, 3.0]
+torque = [0.01, 0.02, -0.03]
+[[bodies]]""", 1)
+
+
+@pytest.mark.parametrize(("text", "integrator"), [(SPRINGS_DRAG_LOADS_3D, "multibody"),
+                                                  (SPRINGS_DRAG_LOADS_3D, "maximal"),
+                                                  ("SPRINGS_2D", "multibody"),
+                                                  ("SPRINGS_2D", "maximal")],
+                         ids=["3d-multibody", "3d-maximal", "2d-planar-joints", "2d-maximal"])
+def test_forces_applied_in_the_compiled_loop_equal_pythons(text, integrator):
+    # Springs (to an anchor and between bodies, off the centre of mass, damped), drag and loads
+    # are evaluated and applied before every step in the compiled loop: the same state reads,
+    # the same terms in the same order, the same commands (2D multibody: joint torques on the
+    # joints' velocity indices). A wrong term, frame, sign, body or index changes bits.
     from test_recording import SPRINGS_2D
 
-    scene = load_case_text(SPRINGS_2D)
-    traj = get_engine("pybullet").run(scene, "maximal", scene.run.dt)
-    assert traj.meta["effective"]["recording"] == (
-        "python loop over PyBullet's functions (forces applied per step from Python)")
+    text = SPRINGS_2D if text == "SPRINGS_2D" else text
+    scene, fast, slow = _both(text, integrator)
+    assert fast.meta["effective"]["recording"].startswith("compiled loop")
+    assert "springs, drag and loads evaluated in the loop" in fast.meta["effective"]["recording"]
+    assert fast.failure is None and slow.failure is None
+    assert np.all(np.ptp(fast.com, axis=0) > 1e-3)
+    _assert_equal(scene, fast, slow)
+
+
+@pytest.mark.parametrize("integrator", ["multibody", "maximal"])
+def test_compiled_forces_blow_up_where_pythons_do(integrator):
+    from test_recording import BLOWUP
+
+    text = BLOWUP.format(dim=3, shape="sphere", anchor="[0.0, 0.0, 0.0]", k="2e8",
+                         position="[0.3, 0.0, 0.0]")
+    scene, fast, slow = _both(text, integrator)
+    assert slow.failure is not None and slow.failure["reason"] == "non-finite state"
+    assert fast.failure == slow.failure
+    assert 1 < len(fast.t) < sampling_plan(scene, scene.run.dt).n_samples
+    _assert_equal(scene, fast, slow)
+
+
+@pytest.mark.parametrize("path", sorted(p.name for p in (ROOT / "cases").glob("rigid*/*.toml")))
+def test_every_committed_rigid_case_records_the_same_both_ways(path):
+    scene = load_case(next((ROOT / "cases").glob(f"rigid*/{path}")))
+    for integrator in ("multibody", "maximal"):
+        _, fast, slow = _both_scene(scene, integrator)
+        assert fast.meta["effective"]["recording"].startswith("compiled loop")
+        assert (fast.failure is None) == (slow.failure is None)
+        _assert_equal(scene, fast, slow)
 
 
 def test_each_client_id_maps_to_its_own_handle():

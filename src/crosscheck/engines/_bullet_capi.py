@@ -45,15 +45,20 @@ FUNCTIONS = ("b3InitStepSimulationCommand", "b3SubmitClientCommandAndWaitStatus"
              "b3RequestActualStateCommandInit", "b3RequestActualStateCommandComputeLinkVelocity",
              "b3RequestActualStateCommandComputeForwardKinematics", "b3GetStatusActualState",
              "b3GetJointState", "b3GetLinkState", "b3GetStatusType")
+# Applying forces before a step (_native.bullet_evaluate_forces / _bullet_apply_forces).
+FORCE_FUNCTIONS = ("b3ApplyExternalForceCommandInit", "b3ApplyExternalForce",
+                   "b3ApplyExternalTorque", "b3JointControlCommandInit2",
+                   "b3JointControlSetDesiredForceTorque")
 _CLIENTS = "sPhysicsClients1"  # pybullet.c: static b3PhysicsClientHandle sPhysicsClients1[...]
 
 
 @dataclass(frozen=True)
 class BulletApi:
-    """Addresses of the C functions (``fns``), where the client handles live, and the status
-    types of a completed step and a completed state request (``kinds``)."""
+    """Addresses of the C functions (``fns``, ``force_fns``), where the client handles live, and
+    the status types of a completed step and a completed state request (``kinds``)."""
 
     fns: np.ndarray
+    force_fns: np.ndarray
     clients: int
     max_clients: int
     kinds: np.ndarray
@@ -91,7 +96,7 @@ def api() -> BulletApi | str:
     try:
         lib = ctypes.CDLL(path)  # the already-loaded module: dlopen returns the same image
         addresses = {name: ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
-                     for name in FUNCTIONS + ("b3GetNumBodies",)}
+                     for name in FUNCTIONS + FORCE_FUNCTIONS + ("b3GetNumBodies",)}
     except (OSError, AttributeError) as exc:  # pragma: no cover - every build exports them
         return f"PyBullet's library does not export Bullet's C API ({exc})"
     try:
@@ -109,7 +114,8 @@ def api() -> BulletApi | str:
     if kind != "STT_OBJECT" or size <= 0 or size % 8:
         return f"{_CLIENTS} is not an array of handles ({kind}, {size} bytes)"
     fns = np.array([addresses[n] for n in FUNCTIONS], dtype=np.intp)
-    located = BulletApi(fns, bases.pop() + value, size // 8, np.zeros(2, np.int64))
+    force_fns = np.array([addresses[n] for n in FORCE_FUNCTIONS], dtype=np.intp)
+    located = BulletApi(fns, force_fns, bases.pop() + value, size // 8, np.zeros(2, np.int64))
     return _check_on_scratch_client(located, addresses["b3GetNumBodies"])
 
 
@@ -138,5 +144,5 @@ def _check_on_scratch_client(located: BulletApi, num_bodies_fn: int) -> BulletAp
             return "Bullet's status types do not tell a completed step or read from a failure"
     finally:
         _p.disconnect(physicsClientId=cid)
-    return BulletApi(located.fns, located.clients, located.max_clients,
+    return BulletApi(located.fns, located.force_fns, located.clients, located.max_clients,
                      np.array([step_kind, read_kind], np.int64))

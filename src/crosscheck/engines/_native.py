@@ -21,6 +21,7 @@ nothing here touches Python objects.
 
 from __future__ import annotations
 
+import math
 import platform
 import sys
 
@@ -189,12 +190,23 @@ def mujoco_record(step, m, d, qpos, qvel, warnings, k, out_q, out_v):
 
 
 # -- Bullet (PyBullet's C API) ------------------------------------------------------------------
-# Bullet's client API (PhysicsClientC_API.h) passes opaque handles (pointers), ints and pointers
-# to caller-owned buffers, and returns handles or ints: one generic caller covers it. ``params``
-# spells the C parameter types, one letter each: "p" pointer (passed as an integer address),
-# "i" int; ``ret`` is "p" or "i".
-_C_TYPES = {"p": _ptr, "i": ir.IntType(32)}
-_NB_RETURN = {"p": types.intp, "i": types.int32}
+# Bullet's client API (PhysicsClientC_API.h) passes opaque handles (pointers), ints, doubles and
+# pointers to caller-owned buffers, and returns handles, ints or nothing: one generic caller
+# covers it. ``params`` spells the C parameter types, one letter each: "p" pointer (passed as an
+# integer address), "i" int, "d" double; ``ret`` is "p", "i" or "v" (void).
+_C_TYPES = {"p": _ptr, "i": ir.IntType(32), "d": _f64, "v": ir.VoidType()}
+_NB_RETURN = {"p": types.intp, "i": types.int32, "v": types.void}
+_NB_PARAM = {"p": types.Integer, "i": types.Integer, "d": types.Float}
+
+
+def _c_argument(builder, kind: str, value):
+    if kind == "p":
+        return builder.inttoptr(value, _ptr)
+    if kind == "d":
+        return value
+    width = value.type.width
+    return (builder.trunc(value, _C_TYPES["i"]) if width > 32
+            else builder.sext(value, _C_TYPES["i"]) if width < 32 else value)
 
 
 def _c_caller(ret: str, params: str):
@@ -203,21 +215,19 @@ def _c_caller(ret: str, params: str):
     @intrinsic
     def call(typingctx, fn, args):
         if not (isinstance(fn, types.Integer) and isinstance(args, types.BaseTuple)
-                and len(args) == len(params) and all(isinstance(a, types.Integer) for a in args)):
+                and len(args) == len(params)
+                and all(isinstance(a, _NB_PARAM[c]) for a, c in zip(args, params, strict=True))):
             return None
 
         def codegen(context, builder, sig, llargs):
             fnty = ir.FunctionType(_C_TYPES[ret], [_C_TYPES[c] for c in params])
             f = builder.inttoptr(llargs[0], fnty.as_pointer())
-            values = []
-            for j, c in enumerate(params):
-                v = builder.extract_value(llargs[1], j)
-                values.append(builder.inttoptr(v, _ptr) if c == "p"
-                              else builder.trunc(v, _C_TYPES["i"]) if v.type.width > 32
-                              else builder.sext(v, _C_TYPES["i"]) if v.type.width < 32 else v)
+            values = [_c_argument(builder, c, builder.extract_value(llargs[1], j))
+                      for j, c in enumerate(params)]
             out = builder.call(f, values)
-            return builder.ptrtoint(out, context.get_value_type(types.intp)) if ret == "p" \
-                else out
+            if ret == "p":
+                return builder.ptrtoint(out, context.get_value_type(types.intp))
+            return context.get_dummy_value() if ret == "v" else out
 
         return _NB_RETURN[ret](fn, args), codegen
 
@@ -231,6 +241,10 @@ call_i_pi = _c_caller("i", "pi")         # b3RequestActualStateCommandCompute...
 call_i_p = _c_caller("i", "p")           # b3GetStatusType(status)
 call_i_p8 = _c_caller("i", "pppppppp")   # b3GetStatusActualState(status, 3 int*, 4 double**)
 call_i_ppip = _c_caller("i", "ppip")     # b3GetJointState / b3GetLinkState(client, status, i, out)
+call_v_piippi = _c_caller("v", "piippi")  # b3ApplyExternalForce(cmd, body, link, f*, at*, frame)
+call_v_piipi = _c_caller("v", "piipi")   # b3ApplyExternalTorque(cmd, body, link, t*, frame)
+call_p_pii = _c_caller("p", "pii")       # b3JointControlCommandInit2(client, body, mode)
+call_i_pid = _c_caller("i", "pid")       # b3JointControlSetDesiredForceTorque(cmd, dof, value)
 
 
 @intrinsic
@@ -260,12 +274,173 @@ _LINK_ANGULAR_VELOCITY = 24
 
 
 @njit(cache=True, nogil=True)
-def bullet_step(fns, client, step_kind, nsteps):
-    """``nsteps`` times what ``pybullet.stepSimulation`` does. Returns BULLET_OK or
-    BULLET_STEP_FAILED (no status, or not a completed step)."""
+def bullet_step(fns, client, step_kind, nsteps, forces=None):
+    """``nsteps`` times what ``pybullet.stepSimulation`` does, each step preceded by the scene's
+    springs, drag and loads when ``forces`` (bullet_force_plan) is given. Returns BULLET_OK or
+    the failure code (a step, or a read or apply of the forces, without the expected answer)."""
     for _ in range(nsteps):
+        if forces is not None:
+            code = _bullet_apply_forces(fns, client, forces)
+            if code != BULLET_OK:
+                return code
         status = call_p_pp(fns[1], (client, call_p_p(fns[0], (client,))))
         if status == 0 or call_i_p(fns[8], (status,)) != step_kind:
+            return BULLET_STEP_FAILED
+    return BULLET_OK
+
+
+# -- forces applied before every step (PybulletModel._apply_forces, compiled) -----------------
+# forces = (ffns, uids, planar, read_kind, acted, spring_bodies, spring_data, drag_bodies,
+# drag_data, base, dofs, modes, state, ft, scratch): see PybulletModel._force_plan, which builds
+# it from the model's _Forces so both evaluate the same springs, drag and loads in the same order.
+# ffns: addresses of (b3ApplyExternalForceCommandInit, b3ApplyExternalForce,
+# b3ApplyExternalTorque, b3JointControlCommandInit2, b3JointControlSetDesiredForceTorque).
+# modes: (EF_WORLD_FRAME, CONTROL_MODE_TORQUE) as PyBullet defines them.
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rotate_xyzw(q, r, out):
+    """out = r rotated by the unit quaternion q = (x, y, z, w): pybullet._rotate, same operations
+    in the same order (so the same bits)."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    rx, ry, rz = r[0], r[1], r[2]
+    tx = 2.0 * (y * rz - z * ry)
+    ty = 2.0 * (z * rx - x * rz)
+    tz = 2.0 * (x * ry - y * rx)
+    out[0] = rx + w * tx + y * tz - z * ty
+    out[1] = ry + w * ty + z * tx - x * tz
+    out[2] = rz + w * tz + x * ty - y * tx
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cross_into(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True, nogil=True)
+def _bullet_force_state(fns, client, uid, planar, read_kind, scratch, st):
+    """st = (centre of mass 3, quaternion x, y, z, w, velocity 3, angular velocity 3) of one
+    body, read as PybulletModel._state_for_forces reads it (one request, no flags)."""
+    status = call_p_pp(fns[1], (client, call_p_pi(fns[2], (client, uid))))
+    if status == 0 or call_i_p(fns[8], (status,)) != read_kind:
+        return BULLET_READ_FAILED
+    if planar:
+        buffer = scratch[2:]
+        for joint in range(3):
+            if call_i_ppip(fns[6], (client, status, joint, buffer.ctypes.data)) == 0:
+                return BULLET_READ_FAILED
+            st[joint] = buffer[0]  # x, y, angle for now
+            st[7 + joint] = buffer[1]  # vx, vy, omega for now
+        angle, spin = st[2], st[9]
+        st[2] = 0.0
+        st[3], st[4], st[5], st[6] = 0.0, 0.0, math.sin(0.5 * angle), math.cos(0.5 * angle)
+        st[9], st[10], st[11], st[12] = 0.0, 0.0, 0.0, spin
+        return BULLET_OK
+    pointers = scratch[:2].view(np.intp)
+    p = pointers.ctypes.data
+    call_i_p8(fns[5], (status, 0, 0, 0, 0, p, p + 8, 0))
+    for c in range(7):
+        st[c] = load_f64(pointers[0], c)
+    for c in range(6):
+        st[7 + c] = load_f64(pointers[1], c)
+    return BULLET_OK
+
+
+@njit(cache=True, nogil=True)
+def bullet_evaluate_forces(fns, client, forces):
+    """Read the acted-on bodies' states into ``forces``' state array and evaluate the springs,
+    drag and loads into its ft array (force 3, torque 3 per body): _Forces.__call__, term by
+    term in its order. Returns BULLET_OK or BULLET_READ_FAILED."""
+    (_, uids, planar, read_kind, acted, spring_bodies, spring_data, drag_bodies, drag_data,
+     base, _, _, state, ft, scratch) = forces
+    for i in acted:
+        code = _bullet_force_state(fns, client, uids[i], planar, read_kind, scratch, state[i])
+        if code != BULLET_OK:
+            return code
+    for i in acted:
+        ft[i, :] = base[i, :]
+    for n in range(drag_bodies.shape[0]):
+        i, c, ca = drag_bodies[n], drag_data[n, 0], drag_data[n, 1]
+        for m in range(3):
+            ft[i, m] -= c * state[i, 7 + m]
+            ft[i, 3 + m] -= ca * state[i, 10 + m]
+    work = scratch[2:]
+    ra_w, wxr, pa, pva = work[0:3], work[3:6], work[6:9], work[9:12]
+    rb_w, pb, pvb, d = work[12:15], work[15:18], work[18:21], work[21:24]
+    e, fv, tq = work[24:27], work[27:30], work[30:33]
+    for n in range(spring_bodies.shape[0]):
+        a, b = spring_bodies[n, 0], spring_bodies[n, 1]
+        k, c, l0 = spring_data[n, 9], spring_data[n, 10], spring_data[n, 11]
+        sa = state[a]
+        _rotate_xyzw(sa[3:7], spring_data[n, 0:3], ra_w)
+        _cross_into(sa[10:13], ra_w, wxr)
+        for j in range(3):
+            pa[j] = sa[j] + ra_w[j]
+            pva[j] = sa[7 + j] + wxr[j]
+        if b < 0:
+            for j in range(3):
+                pb[j] = spring_data[n, 6 + j]
+                pvb[j] = 0.0
+        else:
+            sb = state[b]
+            _rotate_xyzw(sb[3:7], spring_data[n, 3:6], rb_w)
+            _cross_into(sb[10:13], rb_w, wxr)
+            for j in range(3):
+                pb[j] = sb[j] + rb_w[j]
+                pvb[j] = sb[7 + j] + wxr[j]
+        for j in range(3):
+            d[j] = pa[j] - pb[j]
+        length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if length == 0.0:
+            continue
+        for j in range(3):
+            e[j] = d[j] / length
+        rate = ((pva[0] - pvb[0]) * e[0] + (pva[1] - pvb[1]) * e[1]
+                + (pva[2] - pvb[2]) * e[2])
+        mag = -(k * (length - l0) + c * rate)
+        for j in range(3):
+            fv[j] = mag * e[j]
+        _cross_into(ra_w, fv, tq)
+        for j in range(3):
+            ft[a, j] += fv[j]
+            ft[a, 3 + j] += tq[j]
+        if b >= 0:
+            _cross_into(rb_w, fv, tq)
+            for j in range(3):
+                ft[b, j] -= fv[j]
+                ft[b, 3 + j] -= tq[j]
+    return BULLET_OK
+
+
+@njit(cache=True, nogil=True)
+def _bullet_apply_forces(fns, client, forces):
+    """bullet_evaluate_forces, then apply the result as PybulletModel._apply_forces does, one
+    command per call it makes."""
+    code = bullet_evaluate_forces(fns, client, forces)
+    if code != BULLET_OK:
+        return code
+    ffns, uids, planar, _, acted, _, _, _, _, _, dofs, modes, state, ft, _ = forces
+    world, torque_mode = modes[0], modes[1]
+    for i in acted:
+        if planar:
+            command = call_p_pii(ffns[3], (client, uids[i], torque_mode))
+            call_i_pid(ffns[4], (command, dofs[i, 0], ft[i, 0]))
+            call_i_pid(ffns[4], (command, dofs[i, 1], ft[i, 1]))
+            call_i_pid(ffns[4], (command, dofs[i, 2], ft[i, 5]))
+            if call_p_pp(fns[1], (client, command)) == 0:
+                return BULLET_STEP_FAILED
+            continue
+        # The force acts at the centre of mass just read (state[i, 0:3]), world frame.
+        command = call_p_p(ffns[0], (client,))
+        call_v_piippi(ffns[1], (command, uids[i], -1, ft[i, 0:3].ctypes.data,
+                                state[i, 0:3].ctypes.data, world))
+        if call_p_pp(fns[1], (client, command)) == 0:
+            return BULLET_STEP_FAILED
+        command = call_p_p(ffns[0], (client,))
+        call_v_piipi(ffns[2], (command, uids[i], -1, ft[i, 3:6].ctypes.data, world))
+        if call_p_pp(fns[1], (client, command)) == 0:
             return BULLET_STEP_FAILED
     return BULLET_OK
 
@@ -319,8 +494,9 @@ def bullet_read(fns, client, uids, planar, read_kind, row, scratch):
 
 
 @njit(cache=True, nogil=True)
-def bullet_record(fns, client, uids, planar, kinds, k, out, scratch):
-    """Sample 0, then k steps and a sample per row of ``out`` (n_samples, N * width).
+def bullet_record(fns, client, uids, planar, kinds, k, out, scratch, forces=None):
+    """Sample 0, then k steps (with ``forces``, see bullet_step) and a sample per row of ``out``
+    (n_samples, N * width).
 
     Returns (count, code): the number of valid samples (a sample with a non-finite value ends
     the run there; sample 0, the state PyBullet was given, is always kept) and BULLET_OK, or
@@ -331,7 +507,7 @@ def bullet_record(fns, client, uids, planar, kinds, k, out, scratch):
     if code != BULLET_OK:
         return 0, code
     for i in range(1, out.shape[0]):
-        code = bullet_step(fns, client, kinds[0], k)
+        code = bullet_step(fns, client, kinds[0], k, forces)
         if code == BULLET_OK:
             code = bullet_read(fns, client, uids, planar, kinds[1], out[i], scratch)
         if code != BULLET_OK:

@@ -16,8 +16,10 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
 * Recording: a compiled loop (engines/_native.py) steps and reads through Bullet's C client API
   in PyBullet's own library, with the client PyBullet opened (engines/_bullet_capi.py): the same
   commands PyBullet's functions submit, one state request per body and sample instead of two,
-  checked bit for bit against ``read_raw`` before use. PyBullet's Python functions record when
-  that is unavailable or forces are applied per step from Python.
+  checked bit for bit against ``read_raw`` before use. Springs, drag and loads are evaluated and
+  applied in the same loop (``_native.bullet_evaluate_forces``: _Forces' terms in its order,
+  checked bit for bit against _Forces before use; applied with the commands PyBullet's
+  functions submit). PyBullet's Python functions record when that is unavailable.
 * ``createMultiBody`` places the link frame, ``resetBasePositionAndOrientation`` the inertial frame
   (ENGINES.md trap 2): the adapter places bodies with the former and restores the pose PyBullet
   itself reported with the latter.
@@ -52,7 +54,8 @@ Springs, drag and loads are applied before every step from the state at the star
 (``applyExternalForce`` / ``applyExternalTorque`` in WORLD_FRAME at the centre of mass; 2D
 multibody: generalised forces through ``TORQUE_CONTROL`` on the three joints). PyBullet then does
 ``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the velocity for
-damping and drag. PyBullet clears applied forces after every step.
+damping and drag. PyBullet clears applied forces after every step. The compiled loop does the
+same through Bullet's C API (the joints' velocity indices for the 2D torques, from getJointInfo).
 """
 
 from __future__ import annotations
@@ -311,7 +314,8 @@ class PybulletModel:
         self.dim = scene.dimension
         self.planar_joints = self.dim == 2 and not self.maximal
         self.options = engine_options(scene) if options is None else options
-        self._compiled: tuple | None = None  # (native module, api, client, uids, scratch)
+        # (native module, api, client, uids, scratch, force plan or None): see _native.
+        self._compiled: tuple | None = None
         self.native_reason = "not checked yet"  # why the compiled loop is not used
         self.cid = _p.connect(_p.DIRECT)
         if self.cid < 0:  # pragma: no cover
@@ -653,8 +657,9 @@ class PybulletModel:
         call, 14 % of a one-body step."""
         step, cid = _p.stepSimulation, self.cid
         if self.compiled:
-            native, api, client, _, _ = self._compiled
-            if native.bullet_step(api.fns, client, api.kinds[0], nsteps) != native.BULLET_OK:
+            native, api, client, _, _, forces = self._compiled
+            code = native.bullet_step(api.fns, client, api.kinds[0], nsteps, forces)
+            if code != native.BULLET_OK:
                 raise RuntimeError("pybullet: a step failed in Bullet's C API")
             return
         if not self.forces.active:
@@ -669,7 +674,8 @@ class PybulletModel:
     # -- the compiled recorder ------------------------------------------------------------
     def _native(self) -> tuple[tuple | None, str]:
         """The compiled loop (engines/_native.py over Bullet's C API, engines/_bullet_capi.py)
-        if it reads what read_raw reads, bit for bit, on the current state; else (None, why)."""
+        if it reads what read_raw reads and, with forces applied per step, evaluates what
+        _Forces evaluates, bit for bit, on the current state; else (None, why)."""
         try:
             from crosscheck.engines import _bullet_capi, _native
         except Exception as exc:  # pragma: no cover - numba and pyelftools are dependencies
@@ -690,7 +696,41 @@ class PybulletModel:
         expected = np.array(self.read_raw(), float)
         if not np.array_equal(row.view(np.uint64), expected.view(np.uint64)):
             return None, "the compiled reader differs from PyBullet's Python functions"
-        return (_native, api, client, uids, scratch), "compiled"
+        forces = None
+        if self.forces.active:
+            forces = self._force_plan(api, uids, _native.bullet_scratch())
+            if _native.bullet_evaluate_forces(api.fns, client, forces) != _native.BULLET_OK:
+                return None, "a state request for the forces failed in Bullet's C API"
+            python = self.forces(self._state_for_forces())
+            got = forces[13]
+            for i, (force, torque) in python.items():
+                want = np.array([*force, *torque], float)
+                if not np.array_equal(got[i].view(np.uint64), want.view(np.uint64)):
+                    return None, "the compiled forces differ from the Python evaluation"
+        return (_native, api, client, uids, scratch, forces), "compiled"
+
+    def _force_plan(self, api, uids: np.ndarray, scratch: np.ndarray) -> tuple:
+        """The scene's springs, drag and loads as the arrays _native.bullet_evaluate_forces
+        reads, taken from this model's _Forces (same terms, same order)."""
+        f, n = self.forces, len(self.bodies)
+        zero = (0.0, 0.0, 0.0)
+        spring_bodies = np.array([[a, -1 if b is None else b] for a, _, b, *_ in f.springs],
+                                 np.int64).reshape(-1, 2)
+        spring_data = np.array([[*ra, *(rb or zero), *(anchor or zero), k, c, l0]
+                                for _, ra, _, rb, anchor, k, c, l0 in f.springs],
+                               float).reshape(-1, 12)
+        drag_bodies = np.array([i for i, _, _ in f.drag], np.int64)
+        drag_data = np.array([[lin, ang] for _, lin, ang in f.drag], float).reshape(-1, 2)
+        base = np.array([[*f.force0[i], *f.torque0[i]] for i in range(n)], float).reshape(n, 6)
+        dofs = np.zeros((n, 3), np.int64)  # 2D multibody: the velocity index of each joint
+        if self.planar_joints:
+            for i, b in enumerate(self.bodies):
+                dofs[i] = [_p.getJointInfo(b.uid, j, physicsClientId=self.cid)[4]
+                           for j in range(3)]
+        modes = np.array([_p.WORLD_FRAME, _p.TORQUE_CONTROL], np.int64)
+        return (api.force_fns, uids, self.planar_joints, int(api.kinds[1]),
+                np.array(f.acted, np.int64), spring_bodies, spring_data, drag_bodies, drag_data,
+                base, dofs, modes, np.zeros((n, 13)), np.zeros((n, 6)), scratch)
 
     def use_compiled(self, enabled: bool = True) -> bool:
         """Check (once) and switch the compiled loop on, or off to record from Python. Returns
@@ -704,27 +744,29 @@ class PybulletModel:
 
     @property
     def compiled(self) -> bool:
-        """True when stepping and recording run in the compiled loop (no per-step forces)."""
-        return self._compiled is not None and not self.forces.active
+        """True when stepping (with the scene's forces) and recording run compiled."""
+        return self._compiled is not None
 
     @property
     def recording(self) -> str:
         """How record() samples, for meta["effective"]["recording"]."""
         if self.compiled:
+            forces = ("; springs, drag and loads evaluated in the loop before every step (one "
+                      "state request per acted-on body) and applied with the commands PyBullet's "
+                      "functions submit" if self.forces.active else "")
             return ("compiled loop (numba) over Bullet's C API in PyBullet's library: "
-                    "b3 step commands and one actual-state request per body and sample; the "
-                    "reads are inside wall_time")
-        why = ("forces applied per step from Python" if self.forces.active
-               else f"compiled loop unavailable: {self.native_reason}")
-        return f"python loop over PyBullet's functions ({why})"
+                    "b3 step commands and one actual-state request per body and sample"
+                    + forces + "; the reads are inside wall_time")
+        return ("python loop over PyBullet's functions (compiled loop unavailable: "
+                f"{self.native_reason})")
 
     def _record_compiled(self, n_samples: int, k: int
                          ) -> tuple[np.ndarray, int, float, str | None]:
-        native, api, client, uids, scratch = self._compiled
+        native, api, client, uids, scratch, forces = self._compiled
         out = np.empty((n_samples, len(uids) * self.row_width))
         t0 = time.perf_counter()
         count, code = native.bullet_record(api.fns, client, uids, self.planar_joints, api.kinds,
-                                           k, out, scratch)
+                                           k, out, scratch, forces)
         stepping = time.perf_counter() - t0
         error = {native.BULLET_OK: None,
                  native.BULLET_STEP_FAILED: "a step command failed in Bullet's C API",
