@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import platform
 import sys
+from collections import namedtuple
 
 import numpy as np
 from llvmlite import ir
@@ -273,11 +274,54 @@ _JOINT_STATE_DOUBLES, _LINK_STATE_DOUBLES = 32, 64
 _LINK_ANGULAR_VELOCITY = 24
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _request_state(fns, client, uid, link_flags, read_kind):
+    """Bullet's actual-state request for one body, as PyBullet's getters submit it (with link
+    velocity and forward kinematics when ``link_flags``, as ``getLinkState(...,
+    computeLinkVelocity=1, computeForwardKinematics=1)``). Returns the status handle, or 0 when
+    Bullet did not answer with a completed request."""
+    command = call_p_pi(fns[2], (client, uid))
+    if link_flags:
+        call_i_pi(fns[3], (command, 1))
+        call_i_pi(fns[4], (command, 1))
+    status = call_p_pp(fns[1], (client, command))
+    if status != 0 and call_i_p(fns[8], (status,)) != read_kind:
+        return 0
+    return status
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy_base_state(fns, status, scratch, out, o):
+    """out[o:o+7] = base position and quaternion x, y, z, w; out[o+7:o+13] = base velocity and
+    angular velocity: ``getBasePositionAndOrientation`` + ``getBaseVelocity`` of one answer."""
+    pointers = scratch[:2].view(np.intp)
+    p = pointers.ctypes.data
+    call_i_p8(fns[5], (status, 0, 0, 0, 0, p, p + 8, 0))
+    for c in range(7):
+        out[o + c] = load_f64(pointers[0], c)
+    for c in range(6):
+        out[o + 7 + c] = load_f64(pointers[1], c)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy_joint_states(fns, client, status, scratch, out, positions, velocities):
+    """out[positions + j], out[velocities + j] = position and velocity of joints 0, 1, 2 (the
+    2D multibody's x, y and angle): ``getJointStates``. Returns False if Bullet refuses."""
+    buffer = scratch[2:]
+    for joint in range(3):
+        if call_i_ppip(fns[6], (client, status, joint, buffer.ctypes.data)) == 0:
+            return False
+        out[positions + joint] = buffer[0]
+        out[velocities + joint] = buffer[1]
+    return True
+
+
 @njit(cache=True, nogil=True)
 def bullet_step(fns, client, step_kind, nsteps, forces=None):
     """``nsteps`` times what ``pybullet.stepSimulation`` does, each step preceded by the scene's
-    springs, drag and loads when ``forces`` (bullet_force_plan) is given. Returns BULLET_OK or
-    the failure code (a step, or a read or apply of the forces, without the expected answer)."""
+    springs, drag and loads when ``forces`` (a BulletForces, PybulletModel._force_plan) is
+    given. Returns BULLET_OK or the failure code (a step, or a read or apply of the forces,
+    without the expected answer)."""
     for _ in range(nsteps):
         if forces is not None:
             code = _bullet_apply_forces(fns, client, forces)
@@ -290,12 +334,21 @@ def bullet_step(fns, client, step_kind, nsteps, forces=None):
 
 
 # -- forces applied before every step (PybulletModel._apply_forces, compiled) -----------------
-# forces = (ffns, uids, planar, read_kind, acted, spring_bodies, spring_data, drag_bodies,
-# drag_data, base, dofs, modes, state, ft, scratch): see PybulletModel._force_plan, which builds
-# it from the model's _Forces so both evaluate the same springs, drag and loads in the same order.
-# ffns: addresses of (b3ApplyExternalForceCommandInit, b3ApplyExternalForce,
-# b3ApplyExternalTorque, b3JointControlCommandInit2, b3JointControlSetDesiredForceTorque).
-# modes: (EF_WORLD_FRAME, CONTROL_MODE_TORQUE) as PyBullet defines them.
+# PybulletModel._force_plan builds a BulletForces from the model's _Forces, so both evaluate the
+# same springs, drag and loads in the same order:
+# * fns: addresses of (b3ApplyExternalForceCommandInit, b3ApplyExternalForce,
+#   b3ApplyExternalTorque, b3JointControlCommandInit2, b3JointControlSetDesiredForceTorque);
+# * uids, planar, read_kind: as for bullet_read; acted: indices of the acted-on bodies;
+# * spring_bodies (S, 2): a, b (-1: an anchor); spring_data (S, 12): attachment on a and on b
+#   (relative to the centre of mass, in the frame read_raw's quaternion rotates), anchor,
+#   stiffness, damping, rest length;
+# * drag_bodies (D,), drag_data (D, 2): linear and angular coefficients; base (N, 6): the
+#   constant loads, force and torque;
+# * dofs (N, 3): 2D multibody joints' velocity indices; modes: (EF_WORLD_FRAME,
+#   CONTROL_MODE_TORQUE) as PyBullet defines them;
+# * state (N, 13), ft (N, 6), scratch: work arrays (state as read, force and torque).
+BulletForces = namedtuple("BulletForces", "fns uids planar read_kind acted spring_bodies "
+                          "spring_data drag_bodies drag_data base dofs modes state ft scratch")
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -323,28 +376,19 @@ def _cross_into(a, b, out):
 def _bullet_force_state(fns, client, uid, planar, read_kind, scratch, st):
     """st = (centre of mass 3, quaternion x, y, z, w, velocity 3, angular velocity 3) of one
     body, read as PybulletModel._state_for_forces reads it (one request, no flags)."""
-    status = call_p_pp(fns[1], (client, call_p_pi(fns[2], (client, uid))))
-    if status == 0 or call_i_p(fns[8], (status,)) != read_kind:
+    status = _request_state(fns, client, uid, False, read_kind)
+    if status == 0:
         return BULLET_READ_FAILED
-    if planar:
-        buffer = scratch[2:]
-        for joint in range(3):
-            if call_i_ppip(fns[6], (client, status, joint, buffer.ctypes.data)) == 0:
-                return BULLET_READ_FAILED
-            st[joint] = buffer[0]  # x, y, angle for now
-            st[7 + joint] = buffer[1]  # vx, vy, omega for now
-        angle, spin = st[2], st[9]
-        st[2] = 0.0
-        st[3], st[4], st[5], st[6] = 0.0, 0.0, math.sin(0.5 * angle), math.cos(0.5 * angle)
-        st[9], st[10], st[11], st[12] = 0.0, 0.0, 0.0, spin
+    if not planar:
+        _copy_base_state(fns, status, scratch, st, 0)
         return BULLET_OK
-    pointers = scratch[:2].view(np.intp)
-    p = pointers.ctypes.data
-    call_i_p8(fns[5], (status, 0, 0, 0, 0, p, p + 8, 0))
-    for c in range(7):
-        st[c] = load_f64(pointers[0], c)
-    for c in range(6):
-        st[7 + c] = load_f64(pointers[1], c)
+    # Joint coordinates first into st[0:3] and st[7:10], then spread as the 3D layout has them.
+    if not _copy_joint_states(fns, client, status, scratch, st, 0, 7):
+        return BULLET_READ_FAILED
+    angle, spin = st[2], st[9]
+    st[2] = 0.0
+    st[3], st[4], st[5], st[6] = 0.0, 0.0, math.sin(0.5 * angle), math.cos(0.5 * angle)
+    st[9], st[10], st[11], st[12] = 0.0, 0.0, 0.0, spin
     return BULLET_OK
 
 
@@ -353,20 +397,22 @@ def bullet_evaluate_forces(fns, client, forces):
     """Read the acted-on bodies' states into ``forces``' state array and evaluate the springs,
     drag and loads into its ft array (force 3, torque 3 per body): _Forces.__call__, term by
     term in its order. Returns BULLET_OK or BULLET_READ_FAILED."""
-    (_, uids, planar, read_kind, acted, spring_bodies, spring_data, drag_bodies, drag_data,
-     base, _, _, state, ft, scratch) = forces
-    for i in acted:
-        code = _bullet_force_state(fns, client, uids[i], planar, read_kind, scratch, state[i])
+    state, ft = forces.state, forces.ft
+    spring_bodies, spring_data = forces.spring_bodies, forces.spring_data
+    drag_bodies, drag_data = forces.drag_bodies, forces.drag_data
+    for i in forces.acted:
+        code = _bullet_force_state(fns, client, forces.uids[i], forces.planar, forces.read_kind,
+                                   forces.scratch, state[i])
         if code != BULLET_OK:
             return code
-    for i in acted:
-        ft[i, :] = base[i, :]
+    for i in forces.acted:
+        ft[i, :] = forces.base[i, :]
     for n in range(drag_bodies.shape[0]):
         i, c, ca = drag_bodies[n], drag_data[n, 0], drag_data[n, 1]
         for m in range(3):
             ft[i, m] -= c * state[i, 7 + m]
             ft[i, 3 + m] -= ca * state[i, 10 + m]
-    work = scratch[2:]
+    work = forces.scratch[2:]
     ra_w, wxr, pa, pva = work[0:3], work[3:6], work[6:9], work[9:12]
     rb_w, pb, pvb, d = work[12:15], work[15:18], work[18:21], work[21:24]
     e, fv, tq = work[24:27], work[27:30], work[30:33]
@@ -421,10 +467,10 @@ def _bullet_apply_forces(fns, client, forces):
     code = bullet_evaluate_forces(fns, client, forces)
     if code != BULLET_OK:
         return code
-    ffns, uids, planar, _, acted, _, _, _, _, _, dofs, modes, state, ft, _ = forces
-    world, torque_mode = modes[0], modes[1]
-    for i in acted:
-        if planar:
+    ffns, uids, dofs, state, ft = forces.fns, forces.uids, forces.dofs, forces.state, forces.ft
+    world, torque_mode = forces.modes[0], forces.modes[1]
+    for i in forces.acted:
+        if forces.planar:
             command = call_p_pii(ffns[3], (client, uids[i], torque_mode))
             call_i_pid(ffns[4], (command, dofs[i, 0], ft[i, 0]))
             call_i_pid(ffns[4], (command, dofs[i, 1], ft[i, 1]))
@@ -457,39 +503,24 @@ def bullet_read(fns, client, uids, planar, read_kind, row, scratch):
     (``getLinkState(..., computeLinkVelocity=1, computeForwardKinematics=1)``), from one request
     with both flags set. Returns BULLET_OK or BULLET_READ_FAILED.
     """
-    pointers = scratch[:2].view(np.intp)
-    buffer = scratch[2:]
-    address = buffer.ctypes.data
     width = 16 if planar else 13
     for j in range(uids.shape[0]):
-        command = call_p_pi(fns[2], (client, uids[j]))
-        if planar:
-            call_i_pi(fns[3], (command, 1))
-            call_i_pi(fns[4], (command, 1))
-        status = call_p_pp(fns[1], (client, command))
-        if status == 0 or call_i_p(fns[8], (status,)) != read_kind:
+        status = _request_state(fns, client, uids[j], planar, read_kind)
+        if status == 0:
             return BULLET_READ_FAILED
         o = j * width
-        if planar:
-            for joint in range(3):
-                if call_i_ppip(fns[6], (client, status, joint, address)) == 0:
-                    return BULLET_READ_FAILED
-                row[o + joint] = buffer[0]
-                row[o + 3 + joint] = buffer[1]
-            if call_i_ppip(fns[7], (client, status, 2, address)) == 0:
-                return BULLET_READ_FAILED
-            for c in range(7):
-                row[o + 6 + c] = buffer[c]
-            for c in range(3):
-                row[o + 13 + c] = buffer[_LINK_ANGULAR_VELOCITY + c]
-        else:
-            p = pointers.ctypes.data
-            call_i_p8(fns[5], (status, 0, 0, 0, 0, p, p + 8, 0))
-            q, qdot = pointers[0], pointers[1]
-            for c in range(7):
-                row[o + c] = load_f64(q, c)
-            for c in range(6):
-                row[o + 7 + c] = load_f64(qdot, c)
+        if not planar:
+            _copy_base_state(fns, status, scratch, row, o)
+            continue
+        if not _copy_joint_states(fns, client, status, scratch, row, o, o + 3):
+            return BULLET_READ_FAILED
+        buffer = scratch[2:]
+        if call_i_ppip(fns[7], (client, status, 2, buffer.ctypes.data)) == 0:
+            return BULLET_READ_FAILED
+        for c in range(7):
+            row[o + 6 + c] = buffer[c]
+        for c in range(3):
+            row[o + 13 + c] = buffer[_LINK_ANGULAR_VELOCITY + c]
     return BULLET_OK
 
 
@@ -525,9 +556,9 @@ def _continue_sign(out, i, width):
     """Negate sample i's quaternion (x, y, z, w at 3..6 of each body's row) when its dot with
     sample i-1's is negative: the rule of rotations.sign_continuous, applied as the samples
     come. Bullet rebuilds the quaternion from a matrix at every read, so its sign jumps (24
-    times in the free-flight case's 100 intervals); left to the conversion, the jumps cost a
-    per-run pass that is 5 % of that case's stepping. Negation is exact: the Trajectory is the
-    same either way."""
+    times in the free-flight case's 100 intervals); left to the conversion, the jumps send
+    sign_continuous down its slower path (19 us for 101 samples against 7 us, on 0.87 ms of
+    that case's stepping). Negation is exact: the Trajectory is the same either way."""
     for o in range(0, out.shape[1], width):
         dot = 0.0
         for c in range(3, 7):
@@ -538,5 +569,6 @@ def _continue_sign(out, i, width):
 
 
 def bullet_scratch() -> np.ndarray:
-    """Work buffer for bullet_read: two pointer slots, then room for one Bullet struct."""
+    """Work buffer for bullet_read and BulletForces: two pointer slots, then room for one
+    Bullet struct (or the 33 doubles bullet_evaluate_forces works in)."""
     return np.zeros(2 + max(_JOINT_STATE_DOUBLES, _LINK_STATE_DOUBLES))

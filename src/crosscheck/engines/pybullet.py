@@ -698,18 +698,17 @@ class PybulletModel:
             return None, "the compiled reader differs from PyBullet's Python functions"
         forces = None
         if self.forces.active:
-            forces = self._force_plan(api, uids, _native.bullet_scratch())
+            forces = self._force_plan(_native, api, uids)
             if _native.bullet_evaluate_forces(api.fns, client, forces) != _native.BULLET_OK:
                 return None, "a state request for the forces failed in Bullet's C API"
             python = self.forces(self._state_for_forces())
-            got = forces[13]
             for i, (force, torque) in python.items():
                 want = np.array([*force, *torque], float)
-                if not np.array_equal(got[i].view(np.uint64), want.view(np.uint64)):
+                if not np.array_equal(forces.ft[i].view(np.uint64), want.view(np.uint64)):
                     return None, "the compiled forces differ from the Python evaluation"
         return (_native, api, client, uids, scratch, forces), "compiled"
 
-    def _force_plan(self, api, uids: np.ndarray, scratch: np.ndarray) -> tuple:
+    def _force_plan(self, native, api, uids: np.ndarray):
         """The scene's springs, drag and loads as the arrays _native.bullet_evaluate_forces
         reads, taken from this model's _Forces (same terms, same order)."""
         f, n = self.forces, len(self.bodies)
@@ -728,9 +727,12 @@ class PybulletModel:
                 dofs[i] = [_p.getJointInfo(b.uid, j, physicsClientId=self.cid)[4]
                            for j in range(3)]
         modes = np.array([_p.WORLD_FRAME, _p.TORQUE_CONTROL], np.int64)
-        return (api.force_fns, uids, self.planar_joints, int(api.kinds[1]),
-                np.array(f.acted, np.int64), spring_bodies, spring_data, drag_bodies, drag_data,
-                base, dofs, modes, np.zeros((n, 13)), np.zeros((n, 6)), scratch)
+        return native.BulletForces(
+            fns=api.force_fns, uids=uids, planar=self.planar_joints, read_kind=int(api.kinds[1]),
+            acted=np.array(f.acted, np.int64), spring_bodies=spring_bodies,
+            spring_data=spring_data, drag_bodies=drag_bodies, drag_data=drag_data, base=base,
+            dofs=dofs, modes=modes, state=np.zeros((n, 13)), ft=np.zeros((n, 6)),
+            scratch=native.bullet_scratch())
 
     def use_compiled(self, enabled: bool = True) -> bool:
         """Check (once) and switch the compiled loop on, or off to record from Python. Returns
