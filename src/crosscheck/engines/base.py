@@ -1,8 +1,9 @@
 """The engine adapter protocol: what every simulator behind crosscheck implements.
 
-An adapter builds its engine's model from a Scene (never from a hand-written model file), steps it
-with one named integrator at one step size, and returns a Trajectory in the one convention of
-crosscheck.state. It declares what it can do; a scene needing more gets "not applicable: reason".
+An adapter builds its engine's model from a Scene (never from a hand-written model file) and
+opens a session on it (engines/session.py) with one named integrator at one step size; the one
+run driver (engines/driver.py) records, detects blow-ups and times every engine the same way.
+An adapter declares what it can do; a scene needing more gets "not applicable: reason".
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from crosscheck.engines.session import Session
 from crosscheck.scene.model import Scene
 from crosscheck.state import Trajectory
 
@@ -41,6 +43,9 @@ class Engine(Protocol):
 
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         """None if the engine can run this scene with this integrator, else the reason."""
+
+    def open(self, scene: Scene, integrator: str, dt: float) -> Session:
+        """A session at the scene's t = 0 state (see engines/session.py)."""
 
     def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory: ...
 
@@ -79,6 +84,26 @@ class EngineBase:
 
     def check_options(self, scene: Scene) -> None:
         """Raise CaseError for options the case pins for this engine that it does not know."""
+
+    def open(self, scene: Scene, integrator: str, dt: float) -> Session:  # pragma: no cover
+        raise NotImplementedError
+
+    def runaway_factor(self, scene: Scene) -> float:
+        """The driver's energy-runaway factor for this scene (engines/driver.py)."""
+        from crosscheck.engines.driver import RUNAWAY_FACTOR
+
+        return RUNAWAY_FACTOR
+
+    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
+        """The accuracy pass alone (no cost pass): the recorded Trajectory (or FluidRecord)."""
+        from crosscheck.engines.driver import run
+
+        return run(self, scene, integrator, dt, cost=None).output
+
+    def run_fluid(self, scene: Scene, integrator: str, dt: float, cost=None):
+        from crosscheck.errors import EngineUnavailable
+
+        raise EngineUnavailable(f"{self.name} has no grid fluid")
 
     def base_meta(self, scene: Scene, integrator: str, dt: float) -> dict[str, Any]:
         """Fields every Trajectory carries so its arrays can be read with NumPy alone."""

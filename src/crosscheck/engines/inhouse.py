@@ -1,18 +1,17 @@
 """The in-house engine adapter: crosscheck's own simulators behind the adapter protocol.
 
-Rigid scenes (2D and 3D, no contact) run on :mod:`crosscheck.sim.rigid`: the Scene is compiled
-once into a RigidModel, the Baraff state is stepped by the named integrator of
-``crosscheck.sim.rigid.INTEGRATORS`` and sampled on the common sampling plan. The recorded
-quantities are exactly the Trajectory convention: the state's x *is* the centre of mass (world),
-its q the orientation of the declared body frame, P / m the centre-of-mass velocity and
-R I_body^-1 R^T L the world angular velocity, so nothing is converted.
+Rigid scenes (2D and 3D, no contact) run on :mod:`crosscheck.sim.rigid`: a session compiles the
+Scene into a RigidModel and steps the Baraff state with the named integrator of
+``crosscheck.sim.rigid.INTEGRATORS``; the run driver (engines/driver.py) samples and times it.
+The observed quantities are exactly the Trajectory convention: the state's x *is* the centre of
+mass (world), its q the orientation of the declared body frame, P / m the centre-of-mass
+velocity and R I_body^-1 R^T L the world angular velocity, so nothing is converted.
 
 Fluid scenes (``scene.fluid``) are delegated to :func:`crosscheck.sim.fluid.run_fluid`, imported
 lazily: if that package cannot be imported the scene is "not applicable" with the reason.
 
-A blow-up (non-finite state, or energy running away beyond RUNAWAY_FACTOR times what the scene's
-forces can supply) ends the run early and is reported through ``meta["failure"]`` with its time;
-the adapter never raises for it.
+A step the kernels cannot take (a singular implicit system) raises StepFailure, which the driver
+records as the run's failure with its time, like a non-finite state or an energy runaway.
 """
 
 from __future__ import annotations
@@ -20,11 +19,14 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from crosscheck.engines.base import Capabilities, EngineBase, sampling_plan
+import numpy as np
+
+from crosscheck.engines.base import Capabilities, EngineBase
+from crosscheck.engines.session import StepFailure
 from crosscheck.scene.model import Scene
 from crosscheck.sim.rigid import INTEGRATORS
-from crosscheck.sim.rigid.simulation import RUNAWAY_FACTOR, simulate
-from crosscheck.state import Trajectory
+from crosscheck.sim.rigid.model import RigidState, state_from_scene
+from crosscheck.sim.rigid.simulation import RigidSimulation
 
 SHAPES = frozenset({"sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon"})
 RIGID_EFFECTS = frozenset({"gravity", "springs", "drag", "loads"})
@@ -115,40 +117,87 @@ class InhouseEngine(EngineBase):
                             f"options among {sorted(OPTIONS)}", unknown)
         return {k: OPTIONS[k](v) for k, v in raw.items()}
 
-    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory | Any:
-        reason = self.not_applicable(scene, integrator)
-        if reason is not None:
-            from crosscheck.errors import EngineUnavailable
+    def runaway_factor(self, scene: Scene) -> float:
+        return self._options(scene).get("runaway_factor", super().runaway_factor(scene))
 
-            raise EngineUnavailable(f"inhouse: {reason}")
-        if scene.fluid is not None or scene.effects.fluid:
-            return self._run_fluid(scene, integrator, dt)
-        options = self._options(scene)
-        plan = sampling_plan(scene, dt)
-        rec, info = simulate(scene, integrator, dt, plan=plan,
-                             runaway_factor=options.get("runaway_factor", RUNAWAY_FACTOR))
-        meta = self.base_meta(scene, integrator, dt)
-        meta.update({
-            "wall_time": info.wall_time,
-            "compile_time": info.compile_time,
-            "steps": info.steps,
-            "effective": dict(info.settings, energy_scale=info.energy_scale,
-                              gravity=None if scene.effects.gravity is None
-                              else list(map(float, scene.effects.gravity)),
-                              damping="only the declared drag and spring damping",
-                              contact=False),
-        })
-        return rec.finish(meta)
+    def open(self, scene: Scene, integrator: str, dt: float) -> InhouseSession:
+        return InhouseSession(scene, integrator, dt)
 
-    def _run_fluid(self, scene: Scene, integrator: str, dt: float):
+    def run_fluid(self, scene: Scene, integrator: str, dt: float, cost=None):
         module, reason = _fluid_module()
         if module is None:  # pragma: no cover - not_applicable said so already
             from crosscheck.errors import EngineUnavailable
 
             raise EngineUnavailable(f"inhouse: {reason}")
+        from crosscheck.engines.driver import RunResult
+
         record = module.run_fluid(scene, integrator, dt)
         meta = getattr(record, "meta", None)
         if isinstance(meta, dict):
             for key, value in self.base_meta(scene, integrator, dt).items():
                 meta.setdefault(key, value)
-        return record
+        return RunResult(fluid=record)
+
+
+class InhouseSession:
+    """The Baraff state of a scene stepped by one compiled integrator (engines/session.py)."""
+
+    fused = False  # advance(k) is one compiled call already: the generic loop is the fast path
+
+    def __init__(self, scene: Scene, integrator: str, dt: float):
+        self.scene = scene
+        self.dt = float(dt)
+        self.sim = RigidSimulation.from_scene(scene, integrator)
+        self.state = state_from_scene(self.sim.model, scene)
+        n, d = self.sim.model.n_bodies, self.sim.model.dimension
+        r, w = (4, 3) if d == 3 else (1, 1)
+        # Row layout: com (N d), orientation (N r), velocity (N d), angular velocity (N w).
+        self._sizes = (n * d, n * r, n * d, n * w)
+        self._shapes = ((n, d), (n, 4) if d == 3 else (n,), (n, d), (n, 3) if d == 3 else (n,))
+        self.row_width = sum(self._sizes)
+
+    def advance(self, n: int) -> None:
+        try:
+            self.sim.advance(self.state, n, self.dt)
+        except (ArithmeticError, np.linalg.LinAlgError, ValueError) as exc:
+            raise StepFailure(f"step failed: {type(exc).__name__}: {exc}") from exc
+
+    def read_raw(self) -> np.ndarray:
+        return np.concatenate([a.ravel() for a in self.sim.observe(self.state)])
+
+    def convert(self, rows, t):
+        rows = np.asarray(rows, float)
+        parts = np.split(rows, np.cumsum(self._sizes)[:-1], axis=1)
+        return tuple(p.reshape((len(rows), *shape))
+                     for p, shape in zip(parts, self._shapes, strict=True)), {}
+
+    def set_state(self, com, rot, vel, omega) -> None:
+        model = self.sim.model
+        bodies = model.bodies
+        x = np.array(com, float)
+        P = bodies.mass[:, None] * np.asarray(vel, float)
+        if model.dimension == 3:
+            q = np.array(rot, float)
+            from crosscheck.rotations import quat_to_matrix
+
+            r = quat_to_matrix(q)
+            inertia_world = np.einsum("nij,njk,nlk->nil", r, bodies.inertia, r)
+            L = np.einsum("nij,nj->ni", inertia_world, np.asarray(omega, float))
+        else:
+            q = np.array(rot, float)
+            L = bodies.moment * np.asarray(omega, float)
+        self.state = RigidState(x, q, P, L)
+
+    def check(self) -> list[str]:
+        return []
+
+    def effective(self, arrays) -> dict[str, Any]:
+        scene = self.scene
+        return dict(self.sim.integrator.describe(),
+                    effects_simulated=list(self.sim.model.effects),
+                    gravity=None if scene.effects.gravity is None
+                    else list(map(float, scene.effects.gravity)),
+                    damping="only the declared drag and spring damping", contact=False)
+
+    def close(self) -> None:
+        pass

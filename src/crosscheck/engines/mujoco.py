@@ -30,46 +30,38 @@ What is mapped how (docs/engines.md has the full table):
 * **Loads** are constant ``xfrc_applied`` rows (force at the centre of mass, torque, world frame),
   set once.
 
-Stepping, with no Python call per step (engine option ``stepping``):
+Stepping (engine option ``stepping``). ``advance(n)`` is ``mj_step(m, d, nstep=n)`` (a Python
+loop only when drag is applied per step); after it MuJoCo's warning counters are read, and any
+warning (its instability check: NaN, Inf or |value| > 1e10 in qpos, qvel or qacc) ends the run
+as a StepFailure. The accuracy pass records ``qpos``/``qvel`` only, converted to centre-of-mass
+position and velocity and world angular velocity after the run, vectorised (MuJoCo's derived
+arrays, stale after ``mj_step``, are never read):
 
-* ``compiled`` (default): a compiled loop (numba, ``engines/_native.py``) calls MuJoCo's C
-  ``mj_step(m, d)`` k times per sample and copies ``qpos``/``qvel`` from ``data``: the same steps
-  as ``mj_step(m, d, nstep=k)``, without a Python call per sample (those cost ~0.8 us each
-  against ~15 us of stepping between two samples of a one-body Euler scene). It stops at the
-  first sample after which one of MuJoCo's warning counters is set, as ``mujoco.rollout`` does.
-  ``mj_step`` is taken from the ``libmujoco`` the bindings already loaded (``RTLD_NOLOAD``);
-  without it (or without numba) the adapter falls back to ``rollout`` and says so.
-* ``rollout``: ``mujoco.rollout`` in chunks, keeping every k-th state (it writes every step's
-  full state: ~50 ns a step).
-* ``nstep``: ``mj_step(m, d, nstep=k)`` per sample.
-
-A Python loop only for per-step drag. Only ``qpos``/``qvel`` are kept; the conversion to
-centre-of-mass position and velocity and world angular velocity is done from them after the
-run, vectorised (so MuJoCo's derived arrays, stale after ``mj_step``, are never read). All three
-recorders give bit-identical samples (tests/engines/test_mujoco.py).
+* ``compiled`` (default): the session's fused fast path, a compiled loop (numba,
+  ``engines/_native.py``) calling MuJoCo's C ``mj_step(m, d)`` k times per sample and copying
+  ``qpos``/``qvel``, with no Python call per sample. ``mj_step`` is taken from the ``libmujoco``
+  the bindings already loaded (``RTLD_NOLOAD``); without it (or without numba) the driver's
+  generic loop records. Bit-identical to the generic loop (tests/engines/test_driver.py).
+* ``nstep``: the driver's generic loop, ``advance(k)`` then a read per sample.
 """
 
 from __future__ import annotations
 
-import threading
-import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from crosscheck.engines.base import Capabilities, EngineBase, sampling_plan
+from crosscheck.engines.base import Capabilities, EngineBase
+from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.model import Scene
-from crosscheck.state import Trajectory, TrajectoryRecorder
 
 try:  # the registry imports this module lazily; a missing mujoco is "not applicable"
     import mujoco
-    from mujoco import rollout as _rollout
 except ImportError:  # pragma: no cover - mujoco is a declared dependency
     mujoco = None
-    _rollout = None
 
 # Integrator names, MuJoCo's default (Euler) first.
 INTEGRATORS: tuple[str, ...] = ("euler", "rk4", "implicit", "implicitfast", "discrete")
@@ -97,28 +89,12 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "eulerdamp": ((True, False), True),
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
-    "stepping": (("compiled", "rollout", "nstep"), "compiled"),
+    "stepping": (("compiled", "nstep"), "compiled"),
 }
 
 # A run fails at the first sample at or after which MuJoCo's own check fired (mj_checkPos,
 # mj_checkVel, mj_checkAcc: NaN, Inf or a value beyond mjMAXVAL = 1e10).
 _UNSTABLE = "MuJoCo flagged an instability (NaN, Inf or |value| > 1e10 in qpos, qvel or qacc)"
-# Largest rollout chunk kept in memory at once (every step's state is written by rollout).
-ROLLOUT_CHUNK_BYTES = 4 << 20
-_SCRATCH = threading.local()
-
-
-def _scratch(rows: int, width: int) -> np.ndarray:
-    """A per-thread reusable (1, rows, width) array: a fresh one per run costs page faults
-    comparable to stepping a small model (rollout writes every step's state into it)."""
-    size = rows * width
-    buf = getattr(_SCRATCH, "buf", None)
-    if buf is None or buf.size < size:
-        buf = np.empty(size)
-        _SCRATCH.buf = buf
-    return buf[:size].reshape(1, rows, width)
-
-
 def _native_stepper() -> tuple[Any, int | None, str]:
     """(engines._native, address of the C ``mj_step``, "") or (None, None, why not).
 
@@ -157,14 +133,6 @@ def _find_native_stepper() -> tuple[Any, int | None, str]:
         if address:
             return _native, int(address), ""
     return None, None, "the libmujoco loaded by the bindings was not found"
-
-
-def _roller():
-    """A per-thread mujoco.rollout runner without a thread pool (runs on the calling thread)."""
-    roller = getattr(_SCRATCH, "roller", None)
-    if roller is None:
-        roller = _SCRATCH.roller = _rollout.Rollout(nthread=0)
-    return roller
 
 
 _SHAPES_3D = ("sphere", "box", "capsule", "cylinder", "mesh")
@@ -215,12 +183,12 @@ class _BodyMap:
 
 
 class MujocoModel:
-    """One compiled MuJoCo model of one Scene, integrator and step, with the state conversions.
+    """One compiled MuJoCo model of one Scene, integrator and step: a session (session.py).
 
     ``set_initial_state()`` writes the scene's t = 0 state into ``data``; ``advance(n)`` steps;
-    ``record(n, k)`` steps while sampling every k steps; ``convert(qpos, qvel)`` turns (T, nq)/
-    (T, nv) samples into crosscheck's convention; ``state()`` converts the current data;
-    ``effective()`` reads the settings back from the compiled model.
+    ``read_raw()`` is (qpos, qvel); ``convert(rows, t)`` turns such rows into crosscheck's
+    convention; ``record(n, k, rows)`` is the fused fast path; ``settings()`` reads the settings
+    back from the compiled model.
     """
 
     def __init__(self, scene: Scene, integrator: str, dt: float,
@@ -456,7 +424,7 @@ class MujocoModel:
         # qvel only, but anyone inspecting data sees the set state).
         mujoco.mj_forward(m, d)
 
-    def convert(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, ...]:
+    def convert_q(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, ...]:
         """(T, nq), (T, nv) samples -> com (T,N,d), rot (T,N,4)|(T,N), vel (T,N,d), omega."""
         qpos = np.asarray(qpos, float).reshape(-1, self.model.nq)
         qvel = np.asarray(qvel, float).reshape(-1, self.model.nv)
@@ -477,10 +445,49 @@ class MujocoModel:
 
     def state(self) -> tuple[np.ndarray, ...]:
         """The current state of data, (N, ...) arrays in crosscheck's convention."""
-        com, rot, vel, omega = self.convert(self.data.qpos[None], self.data.qvel[None])
+        com, rot, vel, omega = self.convert_q(self.data.qpos[None], self.data.qvel[None])
         return com[0], rot[0], vel[0], omega[0]
 
-    # -- stepping -------------------------------------------------------------------------
+    # -- session -------------------------------------------------------------------------
+    @property
+    def row_width(self) -> int:
+        return self.model.nq + self.model.nv
+
+    def read_raw(self) -> np.ndarray:
+        return np.concatenate([self.data.qpos, self.data.qvel])
+
+    def convert(self, rows, t=None):
+        """(T, nq + nv) rows -> ((com, rot, vel, omega), no extras)."""
+        rows = np.asarray(rows, float).reshape(-1, self.row_width)
+        return self.convert_q(rows[:, :self.model.nq], rows[:, self.model.nq:]), {}
+
+    def set_state(self, com, rot, vel, omega) -> None:
+        """Place a normalised state: the inverse of convert for one sample."""
+        d = self.data
+        for i, b in enumerate(self.bodies):
+            w = np.asarray(omega[i], float)
+            if self.dim == 3:
+                q_decl = np.asarray(rot[i], float)
+                q_mj = quat_mul(q_decl, b.q_p) if self.aligned else q_decl
+                r_mj = quat_to_matrix(q_mj)
+                rc = r_mj @ b.com_mj
+                d.qpos[b.qadr:b.qadr + 3] = np.asarray(com[i], float) - rc
+                d.qpos[b.qadr + 3:b.qadr + 7] = q_mj
+                d.qvel[b.vadr:b.vadr + 3] = np.asarray(vel[i], float) - np.cross(w, rc)
+                d.qvel[b.vadr + 3:b.vadr + 6] = r_mj.T @ w
+            else:
+                d.qpos[b.qadr:b.qadr + 2] = np.asarray(com[i], float) - b.com_mj
+                d.qpos[b.qadr + 2] = float(rot[i])
+                d.qvel[b.vadr:b.vadr + 2] = vel[i]
+                d.qvel[b.vadr + 2] = float(omega[i])
+        mujoco.mj_forward(self.model, d)
+
+    def check(self) -> list[str]:
+        return []
+
+    def close(self) -> None:
+        pass
+
     def _apply_step_forces(self) -> None:
         """Drag with no exact MuJoCo mechanism, from the state at the start of the step."""
         d = self.data
@@ -499,215 +506,60 @@ class MujocoModel:
         d.xfrc_applied[self._sb_ids] = force
 
     def advance(self, nsteps: int) -> None:
-        """nsteps steps: one mj_step call when no force is recomputed per step."""
+        """nsteps steps: one mj_step call when no force is recomputed per step. Raises
+        StepFailure once any of MuJoCo's warning counters is set (they start at zero)."""
         if nsteps <= 0:
             return
         m, d = self.model, self.data
         if not self.per_step_forces:
             mujoco.mj_step(m, d, nsteps)
-            return
-        step, apply = mujoco.mj_step, self._apply_step_forces
-        for _ in range(nsteps):
-            apply()
-            step(m, d)
+        else:
+            step, apply = mujoco.mj_step, self._apply_step_forces
+            for _ in range(nsteps):
+                apply()
+                step(m, d)
+        if d.warning.number.any():
+            raise StepFailure(_UNSTABLE)
 
     @property
-    def recorder(self) -> str:
-        """The recorder run() uses: "loop" (per-step forces, or nstep), "rollout", "compiled"."""
-        if self.per_step_forces or self.options["stepping"] == "nstep":
-            return "loop"
-        if self.options["stepping"] == "compiled" and _native_stepper()[0] is not None:
-            return "compiled"
-        return "rollout"
+    def fused(self) -> bool:
+        """True when ``record`` (the compiled loop) is used by the driver."""
+        return (not self.per_step_forces and self.options["stepping"] == "compiled"
+                and _native_stepper()[0] is not None)
 
     @property
     def stepping_mode(self) -> str:
         if self.per_step_forces:
             return "python loop: per-step xfrc_applied drag, mj_step"
-        recorder = self.recorder
-        if recorder == "compiled":
+        if self.fused:
             return ("compiled loop (numba) calling mj_step(m, d) steps_per_sample times per "
-                    "sample and copying qpos, qvel (the copies are inside wall_time)")
-        if recorder == "rollout":
-            fallback = "" if self.options["stepping"] == "rollout" else (
-                f" (compiled loop unavailable: {_native_stepper()[2]})")
-            return "mujoco.rollout in chunks, every steps_per_sample-th state kept" + fallback
-        return "mj_step(m, d, nstep=steps_per_sample) per sample"
+                    "sample and copying qpos, qvel; cost timed on mj_step(m, d, nstep)")
+        fallback = "" if self.options["stepping"] == "nstep" else (
+            f" (compiled loop unavailable: {_native_stepper()[2]})")
+        return "mj_step(m, d, nstep=steps_per_sample) per sample" + fallback
 
-    def record(self, n_samples: int, k: int) -> tuple[np.ndarray, np.ndarray, float, float,
-                                                      int, str | None]:
-        """Step from the current state, sampling every k steps.
+    def record(self, n: int, k: int, rows: np.ndarray) -> tuple[int, str | None]:
+        """The fused fast path: the rows the generic loop would fill, from a compiled loop.
 
-        Returns (qpos (n, nq), qvel (n, nv), stepping seconds, recording seconds spent in the
-        loop, number of valid samples, failure reason or None). Sample 0 is the current state.
-        A sample is invalid from the first one at which MuJoCo's instability check (NaN, Inf
-        or |value| > 1e10 in qpos, qvel or qacc) has fired during a step leading to it, or
-        the state is not finite.
+        Stops at the first sample after whose steps one of MuJoCo's warning counters is set,
+        as ``advance`` does; returns (valid rows, failure reason or None).
         """
-        recorder = self.recorder
-        if recorder == "loop":
-            return self._record_loop(n_samples, k)
-        if recorder == "compiled":
-            return self._record_compiled(n_samples, k)
-        return self._record_rollout(n_samples, k)
-
-    def _record_compiled(self, n, k):
         m, d = self.model, self.data
         native, step, _ = _native_stepper()
         qpos = np.empty((n, m.nq))
         qvel = np.empty((n, m.nv))
         qpos[0], qvel[0] = d.qpos, d.qvel
-        warnings = d.warning.number
-        warnings[:] = 0  # as mujoco.rollout does before stepping
-        clock = time.perf_counter
-        t0 = clock()
         # d.qpos, d.qvel and d.warning.number are views of data's own memory.
-        count = native.mujoco_record(step, m._address, d._address, d.qpos, d.qvel, warnings, k,
-                                     qpos, qvel)
-        stepping = clock() - t0
+        count = native.mujoco_record(step, m._address, d._address, d.qpos, d.qvel,
+                                     d.warning.number, k, qpos, qvel)
+        rows[:, :m.nq] = qpos
+        rows[:, m.nq:] = qvel
         if count == n:
-            # No warning: MuJoCo's checks catch NaN, Inf and |value| > 1e10 before they spread.
-            return qpos, qvel, stepping, 0.0, n, None
-        # Sample `count` is the first whose steps raised a warning; as in the rollout path, the
-        # valid samples are those before it (and before any non-finite one).
-        good = np.all(np.isfinite(qpos[:count]), axis=1) & np.all(np.isfinite(qvel[:count]),
-                                                                   axis=1)
-        return qpos, qvel, stepping, 0.0, int(np.argmin(np.append(good, False))), _UNSTABLE
-
-    def _record_loop(self, n, k):
-        m, d = self.model, self.data
-        spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        nstate = mujoco.mj_stateSize(m, spec)
-        # Each sample is the full physics state [time, qpos, qvel, ...]: one C call to copy, and
-        # a checkpoint the run can be replayed from.
-        states = np.empty((n, nstate))
-        rows, get = list(states), mujoco.mj_getState
-        get(m, d, rows[0], spec)
-        warning = d.warning
-        flags = [int(getattr(mujoco.mjtWarning, w)) for w in
-                 ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS")]
-
-        def flagged() -> bool:
-            return any(warning[f].number for f in flags)
-
-        # mj_step(m, d, k) is called directly when nothing is applied per step.
-        advance = self.advance if self.per_step_forces else None
-        step = mujoco.mj_step
-        clock = time.perf_counter
-        stepping = 0.0
-        done = 1
-        checked = 0  # last sample known to precede any instability flag
-        stopped = False
-        start = clock()
-        for i in range(1, n):
-            t0 = clock()
-            if advance is None:
-                step(m, d, k)
-            else:
-                advance(k)
-            stepping += clock() - t0
-            get(m, d, rows[i], spec)
-            # MuJoCo's instability counters cost ~1 us to read: every 64 samples, then the
-            # exact sample is found by replaying from the last clean one.
-            if not i & 63:
-                if flagged():
-                    done, stopped = i + 1, True
-                    break
-                checked = i
-        else:
-            done = n
-        if stopped or flagged():
-            advance = self.advance
-            # Replay from the last clean sample, one sample at a time (deterministic: the
-            # full physics state plus the applied forces determine every step).
-            mujoco.mj_resetData(m, d)
-            d.xfrc_applied[:] = self._loads
-            mujoco.mj_setState(m, d, states[checked], spec)
-            first = checked + 1
-            while first < done:
-                advance(k)
-                if flagged():
-                    break
-                first += 1
-            in_loop = clock() - start - stepping
-            return (states[:, 1:1 + m.nq], states[:, 1 + m.nq:1 + m.nq + m.nv], stepping,
-                    in_loop, first, _UNSTABLE)
-        in_loop = clock() - start - stepping
-        # No flag: every state is finite (MuJoCo's checks catch NaN and Inf before a step).
-        return (states[:, 1:1 + m.nq], states[:, 1 + m.nq:1 + m.nq + m.nv], stepping, in_loop,
-                done, None)
-
-    def _record_rollout(self, n, k):
-        m, d = self.model, self.data
-        spec = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        nstate = mujoco.mj_stateSize(m, spec)
-        init = np.empty((1, nstate))
-        mujoco.mj_getState(m, d, init[0], spec)
-        # The full-physics state is [time, qpos, qvel, ...] (mjtState bit order).
-        qs, vs = slice(1, 1 + m.nq), slice(1 + m.nq, 1 + m.nq + m.nv)
-        qpos = np.empty((n, m.nq))
-        qvel = np.empty((n, m.nv))
-        qpos[0], qvel[0] = init[0, qs], init[0, vs]
-        per_chunk = max(1, ROLLOUT_CHUNK_BYTES // (8 * nstate * k)) * k
-        width = min(per_chunk, max((n - 1) * k, 1))
-        out_all = _scratch(width, nstate)
-        sens_all = np.empty((1, width, 0))
-        # rollout is stateless: applied forces are passed as controls, here constant rows of
-        # xfrc_applied. Shapes are exact, so the wrapper's checks are skipped.
-        if self._has_loads:
-            control_spec = int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
-            control_all = np.ascontiguousarray(
-                np.broadcast_to(self._loads.reshape(1, 1, -1), (1, width, self._loads.size)))
-        else:
-            control_spec, control_all = int(mujoco.mjtState.mjSTATE_CTRL), None
-        run_chunk = _roller().rollout_.rollout
-        models, datas = [m], [d]
-        clock = time.perf_counter
-        stepping = 0.0
-        start = clock()
-        filled = 1
-        failure = None
-        while filled < n:
-            steps = min(per_chunk, (n - filled) * k)
-            out = out_all[:, :steps]
-            control = None if control_all is None else control_all[:, :steps]
-            t0 = clock()
-            run_chunk(models, datas, steps, control_spec, init, None, control, out,
-                      sens_all[:, :steps], None)
-            stepping += clock() - t0
-            # A diverged rollout stops stepping and repeats its last state to the end of the
-            # chunk: time stalls. Row j holds the state after step j + 1.
-            times = out[0, :, 0]
-            if times[-1] <= (times[-2] if steps > 1 else init[0, 0]):
-                first = int(np.argmax(np.diff(times, prepend=init[0, 0]) <= 0))
-                # Step `first` (1-based) raised MuJoCo's flag and produced row first - 1,
-                # the last state stepped; samples from that step on are invalid.
-                if first == 0:
-                    filled -= 1  # the previous chunk's last step was the flagged one
-                got = max(0, (first - 1) // k)
-                failure = _UNSTABLE
-            else:
-                got = steps // k
-            rows = out[0, k - 1:got * k:k]
-            qpos[filled:filled + got] = rows[:, qs]
-            qvel[filled:filled + got] = rows[:, vs]
-            filled += got
-            if failure is not None:
-                break
-            init[0] = out[0, -1]
-        in_loop = clock() - start - stepping
-        if failure is None and not np.all(np.isfinite(init)):  # pragma: no cover - MuJoCo
-            failure = "non-finite state"  # flags NaN itself; kept as a guard
-        if failure is not None:
-            good = np.all(np.isfinite(qpos[:filled]), axis=1) & np.all(
-                np.isfinite(qvel[:filled]), axis=1)
-            return qpos, qvel, stepping, in_loop, int(np.argmin(np.append(good, False))), \
-                failure
-        mujoco.mj_setState(m, d, init[0], spec)  # leave data at the final state
-        return qpos, qvel, stepping, in_loop, filled, None
+            return n, None
+        return count, _UNSTABLE
 
     # -- read back ------------------------------------------------------------------------
-    def effective(self) -> dict[str, Any]:
+    def effective(self, arrays=None) -> dict[str, Any]:
         """Settings read back from the compiled model, not from what was asked for."""
         m, d = self.model, self.data
         opt = m.opt
@@ -808,36 +660,6 @@ class MujocoEngine(EngineBase):
         model.set_initial_state()
         return model
 
-    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
-        reason = self.not_applicable(scene, integrator)
-        if reason is not None:
-            from crosscheck.errors import EngineUnavailable
+    def open(self, scene: Scene, integrator: str, dt: float) -> MujocoModel:
+        return self.build(scene, integrator, dt)
 
-            raise EngineUnavailable(f"mujoco: {reason}")
-        plan = sampling_plan(scene, dt)
-        sim = self.build(scene, integrator, dt)
-        qpos, qvel, stepping, in_loop, good, reason = sim.record(plan.n_samples,
-                                                                 plan.steps_per_sample)
-        t_conv = time.perf_counter()
-        traj = self._trajectory(scene, integrator, dt, plan, sim, qpos[:good], qvel[:good],
-                                reason)
-        conversion = time.perf_counter() - t_conv
-        k = plan.steps_per_sample
-        # Settings read back after the run (warning counters included); not part of recording.
-        traj.meta["effective"] = sim.effective()
-        traj.meta["effective"]["steps_per_sample"] = k
-        traj.meta["wall_time"] = stepping
-        traj.meta["wall_time_recording"] = in_loop + conversion
-        return traj
-
-    def _trajectory(self, scene, integrator, dt, plan, sim: MujocoModel, qpos, qvel,
-                    reason: str | None) -> Trajectory:
-        good = len(qpos)
-        com, rot, vel, omega = sim.convert(qpos, qvel)
-        rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), scene.dimension)
-        rec.t[:good] = np.arange(good) * plan.steps_per_sample * dt
-        rec.com[:good], rec.rot[:good], rec.vel[:good], rec.omega[:good] = com, rot, vel, omega
-        rec.count = good
-        if reason is not None:
-            rec.fail(plan.time(good), reason)
-        return rec.finish(self.base_meta(scene, integrator, dt))

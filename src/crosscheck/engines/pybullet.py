@@ -13,13 +13,9 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
-* Recording: a compiled loop (engines/_native.py) steps and reads through Bullet's C client API
-  in PyBullet's own library, with the client PyBullet opened (engines/_bullet_capi.py): the same
-  commands PyBullet's functions submit, one state request per body and sample instead of two,
-  checked bit for bit against ``read_raw`` before use. Springs, drag and loads are evaluated and
-  applied in the same loop (``_native.bullet_evaluate_forces``: _Forces' terms in its order,
-  checked bit for bit against _Forces before use; applied with the commands PyBullet's
-  functions submit). PyBullet's Python functions record when that is unavailable.
+* Stepping and reading go through PyBullet's public Python API only (``stepSimulation``, one
+  ``getBasePositionAndOrientation`` and one ``getBaseVelocity`` per body and sample); the run
+  driver (engines/driver.py) records and times it like every engine.
 * ``createMultiBody`` places the link frame, ``resetBasePositionAndOrientation`` the inertial frame
   (ENGINES.md trap 2): the adapter places bodies with the former and restores the pose PyBullet
   itself reported with the latter.
@@ -63,18 +59,16 @@ from __future__ import annotations
 import functools
 import importlib.metadata
 import math
-import time
 from dataclasses import dataclass
-from itertools import chain
 from typing import Any
 
 import numpy as np
 
-from crosscheck.engines.base import Capabilities, EngineBase, SamplingPlan, sampling_plan
-from crosscheck.errors import CaseError, EngineUnavailable
+from crosscheck.engines.base import Capabilities, EngineBase
+from crosscheck.engines.session import StepFailure
+from crosscheck.errors import CaseError
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.model import Scene
-from crosscheck.state import Trajectory, TrajectoryRecorder
 
 try:  # a missing or broken pybullet makes this engine "not applicable", not an import error
     import pybullet as _p
@@ -314,9 +308,7 @@ class PybulletModel:
         self.dim = scene.dimension
         self.planar_joints = self.dim == 2 and not self.maximal
         self.options = engine_options(scene) if options is None else options
-        # (native module, api, client, uids, scratch, force plan or None): see _native.
-        self._compiled: tuple | None = None
-        self.native_reason = "not checked yet"  # why the compiled loop is not used
+        self.probe_result: dict[str, Any] | None = None
         self.cid = _p.connect(_p.DIRECT)
         if self.cid < 0:  # pragma: no cover
             raise RuntimeError("pybullet could not open a DIRECT client")
@@ -568,14 +560,19 @@ class PybulletModel:
         return row
 
     @property
-    def row_width(self) -> int:
+    def body_width(self) -> int:
+        """Floats per body in a raw row."""
         return 16 if self.planar_joints else 13
+
+    @property
+    def row_width(self) -> int:
+        return self.body_width * len(self.bodies)
 
     def convert(self, raw: np.ndarray, t: np.ndarray) -> tuple[tuple[np.ndarray, ...],
                                                                  dict[str, np.ndarray]]:
         """(T, N * width) raw rows -> (com, rot, vel, omega) in crosscheck's convention, extras."""
         n = len(self.bodies)
-        raw = np.asarray(raw, float).reshape(len(raw), n, self.row_width)
+        raw = np.asarray(raw, float).reshape(len(raw), n, self.body_width)
         if self.planar_joints:
             com = raw[..., 0:2].copy()
             angle = raw[..., 2].copy()
@@ -650,222 +647,86 @@ class PybulletModel:
                 _p.applyExternalTorque(uid, -1, torque, _p.WORLD_FRAME, physicsClientId=cid)
 
     def advance(self, nsteps: int) -> None:
-        """nsteps steps (the bare stepping loop when nothing is applied per step).
-
-        Compiled (engines/_native.py, Bullet's C API) when ``compiled``; else from Python, the
-        client id positionally: as a keyword PyBullet's argument parsing costs 0.15 us more per
-        call, 14 % of a one-body step."""
+        """nsteps steps (the bare stepping loop when nothing is applied per step), the client
+        id positionally: as a keyword PyBullet's argument parsing costs 0.15 us more per call,
+        14 % of a one-body step."""
         step, cid = _p.stepSimulation, self.cid
-        if self.compiled:
-            native, api, client, _, _, forces = self._compiled
-            code = native.bullet_step(api.fns, client, api.kinds[0], nsteps, forces)
-            if code != native.BULLET_OK:
-                raise RuntimeError("pybullet: a step failed in Bullet's C API")
-            return
-        if not self.forces.active:
+        try:
+            if not self.forces.active:
+                for _ in range(nsteps):
+                    step(cid)
+                return
+            apply = self._apply_forces
             for _ in range(nsteps):
+                apply()
                 step(cid)
-            return
-        apply = self._apply_forces
-        for _ in range(nsteps):
-            apply()
-            step(cid)
-
-    # -- the compiled recorder ------------------------------------------------------------
-    def _native(self) -> tuple[tuple | None, str]:
-        """The compiled loop (engines/_native.py over Bullet's C API, engines/_bullet_capi.py)
-        if it reads what read_raw reads and, with forces applied per step, evaluates what
-        _Forces evaluates, bit for bit, on the current state; else (None, why)."""
-        try:
-            from crosscheck.engines import _bullet_capi, _native
-        except Exception as exc:  # pragma: no cover - numba and pyelftools are dependencies
-            return None, f"compiled loop unavailable ({type(exc).__name__}: {exc})"
-        api = _bullet_capi.api()
-        if isinstance(api, str):
-            return None, api
-        client = api.handle(self.cid)
-        if not client:  # pragma: no cover - the client is open
-            return None, f"no C client handle for physicsClientId {self.cid}"
-        uids = np.array([b.uid for b in self.bodies], np.int64)
-        row = np.empty(len(uids) * self.row_width)
-        scratch = _native.bullet_scratch()
-        code = _native.bullet_read(api.fns, client, uids, self.planar_joints, api.kinds[1], row,
-                                   scratch)
-        if code != _native.BULLET_OK:  # pragma: no cover - the bodies exist
-            return None, "a state request through Bullet's C API failed"
-        expected = np.array(self.read_raw(), float)
-        if not np.array_equal(row.view(np.uint64), expected.view(np.uint64)):
-            return None, "the compiled reader differs from PyBullet's Python functions"
-        forces = None
-        if self.forces.active:
-            forces = self._force_plan(_native, api, uids)
-            if _native.bullet_evaluate_forces(api.fns, client, forces) != _native.BULLET_OK:
-                return None, "a state request for the forces failed in Bullet's C API"
-            python = self.forces(self._state_for_forces())
-            for i, (force, torque) in python.items():
-                want = np.array([*force, *torque], float)
-                if not np.array_equal(forces.ft[i].view(np.uint64), want.view(np.uint64)):
-                    return None, "the compiled forces differ from the Python evaluation"
-        return (_native, api, client, uids, scratch, forces), "compiled"
-
-    def _force_plan(self, native, api, uids: np.ndarray):
-        """The scene's springs, drag and loads as the arrays _native.bullet_evaluate_forces
-        reads, taken from this model's _Forces (same terms, same order)."""
-        f, n = self.forces, len(self.bodies)
-        zero = (0.0, 0.0, 0.0)
-        spring_bodies = np.array([[a, -1 if b is None else b] for a, _, b, *_ in f.springs],
-                                 np.int64).reshape(-1, 2)
-        spring_data = np.array([[*ra, *(rb or zero), *(anchor or zero), k, c, l0]
-                                for _, ra, _, rb, anchor, k, c, l0 in f.springs],
-                               float).reshape(-1, 12)
-        drag_bodies = np.array([i for i, _, _ in f.drag], np.int64)
-        drag_data = np.array([[lin, ang] for _, lin, ang in f.drag], float).reshape(-1, 2)
-        base = np.array([[*f.force0[i], *f.torque0[i]] for i in range(n)], float).reshape(n, 6)
-        dofs = np.zeros((n, 3), np.int64)  # 2D multibody: the velocity index of each joint
-        if self.planar_joints:
-            for i, b in enumerate(self.bodies):
-                dofs[i] = [_p.getJointInfo(b.uid, j, physicsClientId=self.cid)[4]
-                           for j in range(3)]
-        modes = np.array([_p.WORLD_FRAME, _p.TORQUE_CONTROL], np.int64)
-        return native.BulletForces(
-            fns=api.force_fns, uids=uids, planar=self.planar_joints, read_kind=int(api.kinds[1]),
-            acted=np.array(f.acted, np.int64), spring_bodies=spring_bodies,
-            spring_data=spring_data, drag_bodies=drag_bodies, drag_data=drag_data, base=base,
-            dofs=dofs, modes=modes, state=np.zeros((n, 13)), ft=np.zeros((n, 6)),
-            scratch=native.bullet_scratch())
-
-    def use_compiled(self, enabled: bool = True) -> bool:
-        """Check (once) and switch the compiled loop on, or off to record from Python. Returns
-        whether it is on. Call after set_initial_state; run() does."""
-        if not enabled:
-            self._compiled, self.native_reason = None, "switched off"
-            return False
-        if self._compiled is None:
-            self._compiled, self.native_reason = self._native()
-        return self.compiled
-
-    @property
-    def compiled(self) -> bool:
-        """True when stepping (with the scene's forces) and recording run compiled."""
-        return self._compiled is not None
-
-    @property
-    def recording(self) -> str:
-        """How record() samples, for meta["effective"]["recording"]."""
-        if self.compiled:
-            forces = ("; springs, drag and loads evaluated in the loop before every step (one "
-                      "state request per acted-on body) and applied with the commands PyBullet's "
-                      "functions submit" if self.forces.active else "")
-            return ("compiled loop (numba) over Bullet's C API in PyBullet's library: "
-                    "b3 step commands and one actual-state request per body and sample"
-                    + forces + "; the reads are inside wall_time")
-        return ("python loop over PyBullet's functions (compiled loop unavailable: "
-                f"{self.native_reason})")
-
-    def _record_compiled(self, n_samples: int, k: int
-                         ) -> tuple[np.ndarray, int, float, str | None]:
-        native, api, client, uids, scratch, forces = self._compiled
-        out = np.empty((n_samples, len(uids) * self.row_width))
-        t0 = time.perf_counter()
-        count, code = native.bullet_record(api.fns, client, uids, self.planar_joints, api.kinds,
-                                           k, out, scratch, forces)
-        stepping = time.perf_counter() - t0
-        error = {native.BULLET_OK: None,
-                 native.BULLET_STEP_FAILED: "a step command failed in Bullet's C API",
-                 native.BULLET_READ_FAILED: "a state request failed in Bullet's C API"}[code]
-        return out[:count], int(count), stepping, error
-
-    def record(self, n_samples: int, k: int) -> tuple[np.ndarray, int, float, str | None]:
-        """Sample the current state, then k steps and a sample, n_samples - 1 times.
-
-        Returns (raw rows (count, N * row_width) as ``read_raw``'s, count of valid samples,
-        seconds spent stepping, PyBullet's error message if a call raised). Samples from the
-        first non-finite one on are dropped.
-
-        Compiled (``_record_compiled``) when ``compiled``: one state request per body and sample,
-        the reads inside the returned stepping time. Otherwise the Python loop below, the
-        cheapest PyBullet's Python API allows (measurements in docs/engines.md): per
-        sample and body exactly the two calls ``getBasePositionAndOrientation`` and
-        ``getBaseVelocity`` (~1 us each, as much as a step; no call returns both), their tuples
-        kept as they come and flattened into one array after the run. Finiteness is checked
-        every 64 samples and the exact first non-finite sample found afterwards.
-        """
-        if self.compiled:
-            return self._record_compiled(n_samples, k)
-        if self.planar_joints:
-            return self._record_rows(n_samples, k)
-        cid = self.cid
-        uids = [b.uid for b in self.bodies]
-        single = uids[0] if len(uids) == 1 else None
-        pose, velocity, step = (_p.getBasePositionAndOrientation, _p.getBaseVelocity,
-                                _p.stepSimulation)
-        advance = self.advance if self.forces.active else None
-        steps = range(k)
-        clock = time.perf_counter
-        isfinite = math.isfinite
-        flat = chain.from_iterable
-        # Per sample and body the two tuples as PyBullet returns them, ((x, y, z), (qx, qy, qz,
-        # qw)) and ((vx, vy, vz), (wx, wy, wz)): flattened in that order they are read_raw's row.
-        parts: list[tuple] = []
-        append = parts.append
-        for uid in uids:
-            append(pose(uid, cid))
-            append(velocity(uid, cid))
-        per_sample = 2 * len(uids)
-        stepping = 0.0
-        error = None
-        try:
-            for i in range(1, n_samples):
-                t0 = clock()
-                if advance is None:
-                    for _ in steps:
-                        step(cid)
-                else:
-                    advance(k)
-                stepping += clock() - t0
-                if single is not None:
-                    append(pose(single, cid))
-                    append(velocity(single, cid))
-                else:
-                    for uid in uids:
-                        append(pose(uid, cid))
-                        append(velocity(uid, cid))
-                if not i & 63 and not all(map(isfinite, flat(flat(parts[-per_sample:])))):
-                    break
         except _p.error as exc:  # pragma: no cover - pybullet raises only on misuse
-            error = str(exc)
-            del parts[len(parts) - len(parts) % per_sample:]  # a sample read half-way
-        width = self.row_width * len(uids)
-        rows = len(parts) // per_sample
-        raw = np.fromiter(flat(flat(parts)), float, count=rows * width).reshape(rows, width)
-        bad = ~np.isfinite(raw).all(axis=1)
-        bad[0] = False  # sample 0 is the state PyBullet was given, kept as it is
-        count = int(np.argmax(bad)) if bad.any() else rows
-        return raw[:count], count, stepping, error
+            raise StepFailure(f"pybullet error: {exc}") from exc
 
-    def _record_rows(self, n_samples: int, k: int) -> tuple[np.ndarray, int, float, str | None]:
-        """record() through read_raw per sample (2D multibody: joint states and link state)."""
-        clock = time.perf_counter
-        rows = [self.read_raw()]
-        stepping = 0.0
-        error = None
-        advance, read = self.advance, self.read_raw
-        for _ in range(1, n_samples):
-            t0 = clock()
-            try:
-                advance(k)
-            except _p.error as exc:  # pragma: no cover - pybullet raises only on misuse
-                error = str(exc)
-                break
-            stepping += clock() - t0
-            row = read()
-            if not all(map(math.isfinite, row)):
-                break
-            rows.append(row)
-        return np.array(rows, float), len(rows), stepping, error
+    # -- session (engines/session.py) ----------------------------------------------------
+    fused = False  # no fast path: PyBullet's public API is stepped and read from Python
+
+    def open_at_initial_state(self) -> PybulletModel:
+        """Probe once (what PyBullet does not report back), then place the t = 0 state."""
+        poses = self.base_poses()
+        self.probe_result = self.probe()
+        self.set_initial_state(poses)
+        return self
+
+    def set_state(self, com, rot, vel, omega) -> None:
+        """Place a normalised state: the inverse of convert for one sample."""
+        cid = self.cid
+        for i, b in enumerate(self.bodies):
+            if self.planar_joints:
+                for j, (q, qd) in enumerate(((com[i][0], vel[i][0]), (com[i][1], vel[i][1]),
+                                             (rot[i], omega[i]))):
+                    _p.resetJointState(b.uid, j, float(q), float(qd), physicsClientId=cid)
+                continue
+            if self.dim == 3:
+                c3, q_body = np.asarray(com[i], float), np.asarray(rot[i], float)
+                v3, w3 = np.asarray(vel[i], float), np.asarray(omega[i], float)
+            else:
+                c3 = np.array([com[i][0], com[i][1], 0.0])
+                half = 0.5 * float(rot[i])
+                q_body = np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
+                v3 = np.array([vel[i][0], vel[i][1], 0.0])
+                w3 = np.array([0.0, 0.0, float(omega[i])])
+            # PyBullet's base pose is the inertial frame: R_in = R_body V.
+            q_in = quat_mul(q_body, b.q_axes)
+            _p.resetBasePositionAndOrientation(b.uid, c3.tolist(), _xyzw(q_in),
+                                               physicsClientId=cid)
+            _p.resetBaseVelocity(b.uid, v3.tolist(), w3.tolist(), physicsClientId=cid)
+
+    def check(self) -> list[str]:
+        problems = list(self.settings()[1])
+        probe = self.probe_result
+        if probe is not None and not probe["neutral"]:
+            problems.append(
+                "a force-free step changed the velocities (relative "
+                f"{probe['max_relative_change_linear']:.3g} linear, "
+                f"{probe['max_relative_change_angular']:.3g} angular): damping or the velocity "
+                "clamp is still on")
+        return problems
+
+    def effective(self, arrays=None) -> dict[str, Any]:
+        effective = self.settings()[0]
+        effective["probe"] = self.probe_result
+        effective["recording"] = ("python loop over PyBullet's functions: per sample and body "
+                                  "getBasePositionAndOrientation and getBaseVelocity (2D "
+                                  "multibody: getJointStates and getLinkState)")
+        warnings = []
+        if arrays is not None and len(arrays[3]):
+            omega = np.asarray(arrays[3])
+            spin = float(np.max(np.linalg.norm(omega, axis=-1) if self.dim == 3
+                                else np.abs(omega))) * self.dt
+            if spin > MAX_ROTATION_PER_STEP:
+                warnings.append(f"a sampled |omega| dt of {spin:.3g} rad exceeds PyBullet's cap "
+                                "of pi/4 per step: orientations rotate too little")
+        effective["warnings"] = warnings
+        return effective
 
     # -- read back ------------------------------------------------------------------------
-    def effective(self) -> tuple[dict[str, Any], list[str]]:
+    def settings(self) -> tuple[dict[str, Any], list[str]]:
         """Settings read back from PyBullet, and the mismatches with what the scene needs."""
         cid = self.cid
         problems: list[str] = []
@@ -954,9 +815,6 @@ class PybulletEngine(EngineBase):
     name = "pybullet"
     effect_reasons = {**EngineBase.effect_reasons,
                       "fluid": "PyBullet has no grid fluid"}
-    # Record through the compiled loop over Bullet's C API when it checks out (tests switch it
-    # off to compare with PyBullet's Python functions).
-    compiled_recording = True
 
     def check_options(self, scene: Scene) -> None:
         engine_options(scene)  # raises CaseError on an unknown key
@@ -981,64 +839,13 @@ class PybulletEngine(EngineBase):
             return "the pybullet package is not installed"
         return super().not_applicable(scene, integrator)
 
-    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
-        reason = self.not_applicable(scene, integrator)
-        if reason is not None:
-            raise EngineUnavailable(f"pybullet: {reason}")
-        plan = sampling_plan(scene, dt)
+    def open(self, scene: Scene, integrator: str, dt: float) -> PybulletModel:
         model = PybulletModel(scene, integrator, dt)
         try:
-            return self._run(scene, integrator, dt, plan, model)
-        finally:
+            return model.open_at_initial_state()
+        except BaseException:
             model.close()
-
-    def _run(self, scene: Scene, integrator: str, dt: float, plan: SamplingPlan,
-             model: PybulletModel) -> Trajectory:
-        poses = model.base_poses()
-        probe = model.probe()
-        model.set_initial_state(poses)
-        model.use_compiled(self.compiled_recording)
-        effective, problems = model.effective()
-        effective["probe"] = probe
-        effective["recording"] = model.recording
-        effective["steps_per_sample"] = plan.steps_per_sample
-        if not probe["neutral"]:
-            problems.append(
-                "a force-free step changed the velocities (relative "
-                f"{probe['max_relative_change_linear']:.3g} linear, "
-                f"{probe['max_relative_change_angular']:.3g} angular): damping or the velocity "
-                "clamp is still on")
-        clock = time.perf_counter
-        failure: dict | None = None
-        start = clock()
-        if problems:
-            failure = {"time": 0.0, "reason": "pybullet settings: " + "; ".join(problems)}
-            raw, count, stepping, _ = model.record(1, plan.steps_per_sample)
-        else:
-            raw, count, stepping, error = model.record(plan.n_samples, plan.steps_per_sample)
-            if error is not None:  # pragma: no cover - pybullet raises only on misuse
-                failure = {"time": plan.time(count), "reason": f"pybullet error: {error}"}
-            elif count < plan.n_samples:
-                failure = {"time": plan.time(count), "reason": "non-finite state"}
-        loop = clock() - start
-        t_conv = clock()
-        t = np.arange(count) * plan.steps_per_sample * dt
-        (com, rot, vel, omega), extras = model.convert(raw, t)
-        meta = self.base_meta(scene, integrator, dt)
-        meta["effective"] = effective
-        warnings = []
-        if scene.dimension == 3 and len(omega):
-            spin = float(np.max(np.linalg.norm(omega, axis=-1))) * dt
-        else:
-            spin = float(np.max(np.abs(omega), initial=0.0)) * dt
-        if spin > MAX_ROTATION_PER_STEP:
-            warnings.append(f"a sampled |omega| dt of {spin:.3g} rad exceeds PyBullet's cap of "
-                            f"pi/4 per step: orientations rotate too little")
-        effective["warnings"] = warnings
-        traj = _finish(plan, scene, t, com, rot, vel, omega, meta, extras, failure)
-        traj.meta["wall_time"] = stepping
-        traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
-        return traj
+            raise
 
 
 @functools.lru_cache(maxsize=1)
@@ -1052,22 +859,3 @@ def _version() -> str:
         dist = "unknown"
     return f"{dist} (API {_p.getAPIVersion()})"
 
-
-def _finish(plan: SamplingPlan, scene: Scene, t, com, rot, vel, omega, meta, extras,
-            failure) -> Trajectory:
-    """Fill a TrajectoryRecorder with converted samples; keep 2D angles as unwrapped here.
-
-    ``TrajectoryRecorder.finish`` applies ``np.unwrap`` to 2D angles, which would undo a true
-    turn of more than half a revolution between samples; the angles are already continuous.
-    """
-    n = len(t)
-    rec = TrajectoryRecorder(plan.n_samples, len(scene.bodies), scene.dimension)
-    rec.t[:n] = t
-    rec.com[:n], rec.rot[:n], rec.vel[:n], rec.omega[:n] = com, rot, vel, omega
-    rec.count = n
-    if failure is not None:
-        rec.fail(failure["time"], failure["reason"])
-    traj = rec.finish(meta, extras)
-    if scene.dimension == 2:
-        traj.angle = np.array(rot, float).reshape(n, len(scene.bodies))
-    return traj

@@ -49,15 +49,13 @@ differs or numba is missing; ``meta["effective"]["recording"]`` says which ran.
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import numpy as np
 
-from crosscheck.engines.base import Capabilities, EngineBase, SamplingPlan, sampling_plan
-from crosscheck.errors import CaseError, EngineUnavailable
+from crosscheck.engines.base import Capabilities, EngineBase
+from crosscheck.errors import CaseError
 from crosscheck.scene.model import Scene
-from crosscheck.state import Trajectory
 
 try:  # a missing or broken pymunk makes this engine "not applicable", not an import error
     import pymunk as _pm
@@ -263,56 +261,65 @@ class PymunkModel:
             step(dt)
 
     @property
-    def compiled(self) -> bool:
-        """True when run() steps and records in the compiled loop."""
+    def fused(self) -> bool:
+        """True when the driver records through the compiled loop (``record``)."""
         return self.native is not None and not self.per_step
 
     @property
     def recording(self) -> str:
-        if self.compiled:
-            return ("compiled loop (numba) calling cpSpaceStep and the C getters; the reads are "
-                    "inside wall_time")
+        if self.fused:
+            return "compiled loop (numba) calling cpSpaceStep and the C getters"
         why = ("forces applied per step from Python" if self.per_step
                else f"compiled loop unavailable: {self.native_reason}")
         return f"python loop, cpSpaceStep and the C getters through cffi ({why})"
 
-    def record(self, n_samples: int, k: int) -> tuple[tuple[np.ndarray, ...], int, float]:
-        """Sample the current state, then k steps and a sample, n_samples - 1 times.
+    # -- session (engines/session.py) ----------------------------------------------------
+    @property
+    def row_width(self) -> int:
+        return 6 * len(self.bodies)
 
-        Returns ((com (n_samples, N, 2), angle (n_samples, N), vel (n_samples, N, 2), omega
-        (n_samples, N)), number of valid samples, seconds spent stepping): the Trajectory's own
-        arrays, written in place by the compiled loop (each array is allocated once: with many
-        bodies, fresh trajectory-sized buffers and copies cost more than Chipmunk's steps).
-        The samples from the first non-finite one on are invalid.
+    def record(self, n_samples: int, k: int, rows: np.ndarray) -> tuple[int, str | None]:
+        """The fused fast path: the rows the generic loop would fill, from the compiled loop.
+
+        Rows from the first non-finite sample on are not valid; returns (valid rows, reason).
         """
-        clock = time.perf_counter
+        native, fns, space, bodies, cogs = self.native
         n = len(self.bodies)
         com, angle = np.empty((n_samples, n, 2)), np.empty((n_samples, n))
         vel, omega = np.empty((n_samples, n, 2)), np.empty((n_samples, n))
-        if self.compiled:
-            native, fns, space, bodies, cogs = self.native
-            t0 = clock()
-            count = native.chipmunk_record(fns, space, self.dt, k, bodies, cogs, com, angle,
-                                           vel, omega)
-            return (com, angle, vel, omega), count, clock() - t0
-        rows = [self.read_raw()]
-        stepping = 0.0
-        advance, read = self.advance, self.read_raw
-        for _ in range(1, n_samples):
-            t0 = clock()
-            advance(k)
-            stepping += clock() - t0
-            row = read()
-            if not all(map(math.isfinite, row)):
-                break
-            rows.append(row)
-        count = len(rows)
-        raw = np.array(rows, float).reshape(count, n, 6)
-        com[:count], angle[:count] = raw[..., 0:2], raw[..., 2]
-        vel[:count], omega[:count] = raw[..., 3:5], raw[..., 5]
-        return (com, angle, vel, omega), count, stepping
+        count = native.chipmunk_record(fns, space, self.dt, k, bodies, cogs, com, angle, vel,
+                                       omega)
+        out = rows.reshape(n_samples, n, 6)
+        out[..., 0:2], out[..., 2], out[..., 3:5], out[..., 5] = com, angle, vel, omega
+        return count, (None if count == n_samples else "non-finite state")
 
-    def effective(self) -> tuple[dict[str, Any], list[str]]:
+    def convert(self, rows, t=None):
+        """(T, 6N) rows -> ((com, angle, vel, omega), no extras): already crosscheck's terms
+        (the centre of gravity in the world, Chipmunk's accumulated angle, never wrapped)."""
+        rows = np.asarray(rows, float)
+        raw = rows.reshape(len(rows), len(self.bodies), 6)
+        return (raw[..., 0:2].copy(), raw[..., 2].copy(), raw[..., 3:5].copy(),
+                raw[..., 5].copy()), {}
+
+    def set_state(self, com, rot, vel, omega) -> None:
+        for pb, c, a, v, w in zip(self.bodies, com, rot, vel, omega, strict=True):
+            pb.angle = float(a)
+            # The position setter places the body origin; the centre of gravity is rotated.
+            cog = pb.center_of_gravity.rotated(float(a))
+            pb.position = (float(c[0]) - cog.x, float(c[1]) - cog.y)
+            pb.velocity = (float(v[0]), float(v[1]))
+            pb.angular_velocity = float(w)
+
+    def check(self) -> list[str]:
+        return self.settings()[1]
+
+    def effective(self, arrays=None) -> dict[str, Any]:
+        return self.settings()[0]
+
+    def close(self) -> None:
+        pass
+
+    def settings(self) -> tuple[dict[str, Any], list[str]]:
         """Settings read back from the Space, bodies and springs, and mismatches with the scene."""
         space = self.space
         problems: list[str] = []
@@ -394,47 +401,5 @@ class PymunkEngine(EngineBase):
             return "pymunk is 2D"
         return super().not_applicable(scene, integrator)
 
-    def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory:
-        reason = self.not_applicable(scene, integrator)
-        if reason is not None:
-            raise EngineUnavailable(f"pymunk: {reason}")
-        plan = sampling_plan(scene, dt)
-        model = PymunkModel(scene, dt)
-        effective, problems = model.effective()
-        effective["steps_per_sample"] = plan.steps_per_sample
-        clock = time.perf_counter
-        start = clock()
-        if problems:
-            failure: dict | None = {"time": 0.0,
-                                    "reason": "pymunk settings: " + "; ".join(problems)}
-            arrays, count, stepping = model.record(1, plan.steps_per_sample)
-        else:
-            failure = None
-            arrays, count, stepping = model.record(plan.n_samples, plan.steps_per_sample)
-            if count < plan.n_samples:
-                failure = {"time": float(plan.time(count)), "reason": "non-finite state"}
-        loop = clock() - start
-        t_conv = clock()
-        meta = self.base_meta(scene, integrator, dt)
-        meta["effective"] = effective
-        traj = _finish(plan, count, arrays, meta, failure)
-        traj.meta["wall_time"] = stepping
-        traj.meta["wall_time_recording"] = (loop - stepping) + (clock() - t_conv)
-        return traj
-
-
-def _finish(plan: SamplingPlan, count: int, arrays: tuple[np.ndarray, ...], meta: dict,
-            failure: dict | None) -> Trajectory:
-    """The Trajectory of the first ``count`` samples, on the arrays the loop wrote.
-
-    Built directly rather than through ``TrajectoryRecorder`` (whose buffers and ``finish``
-    copies would allocate every array twice more) with what ``finish`` puts in: ``t`` the
-    sample times, ``meta["failure"]``, and the angle as Chipmunk gave it (continuous, never
-    wrapped or unwrapped: an unwrap would undo a true turn of more than half a revolution
-    between samples).
-    """
-    com, angle, vel, omega = (a[:count] for a in arrays)
-    meta = dict(meta)
-    meta["failure"] = failure
-    t = np.arange(count) * plan.steps_per_sample * plan.dt
-    return Trajectory(t=t, com=com, vel=vel, omega=omega, angle=angle, meta=meta)
+    def open(self, scene: Scene, integrator: str, dt: float) -> PymunkModel:
+        return PymunkModel(scene, dt)

@@ -145,24 +145,34 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
         result.update(status="not_applicable", reason=reason)
         return result
 
+    from crosscheck.engines.driver import CostPlan, run
+
     t0 = time.perf_counter()
-    output = engine.run(scene, integrator, dt)
+    ran = run(engine, scene, integrator, dt, cost=CostPlan() if task.get("cost", True) else None)
     run_seconds = time.perf_counter() - t0
+    result["run_seconds"] = run_seconds
+    if ran.cost is not None:
+        result.update(_cost_fields(ran.cost.to_dict()))
+    output = ran.output
     if scene.fluid is not None or not _is_trajectory(output):
         return _finish_fluid(task, scene, output, result, run_seconds)
     return _finish_rigid(task, scene, output, result, run_seconds)
+
+
+def _cost_fields(cost: dict[str, Any]) -> dict[str, Any]:
+    """results.json's cost fields from the driver's cost pass (docs/metrics.md, "Cost")."""
+    return {"cost": cost.get("per_simulated_second"),
+            "cost_median": cost.get("per_simulated_second_median"),
+            "cost_spread": cost.get("spread"),
+            "cpu_cost": cost.get("cpu_per_simulated_second"),
+            "wall_time": cost.get("wall_min"),
+            "cost_detail": cost}
 
 
 def _is_trajectory(obj) -> bool:
     from crosscheck.state import Trajectory
 
     return isinstance(obj, Trajectory)
-
-
-def _cost(wall: float | None, simulated: float) -> float | None:
-    if wall is None or simulated <= 0:
-        return None
-    return float(wall) / simulated
 
 
 def _finish_rigid(task, scene, traj, result, run_seconds):
@@ -206,11 +216,9 @@ def _finish_rigid(task, scene, traj, result, run_seconds):
                     blowup_time=ms.blowup_time, blowup_reason=ms.blowup_reason,
                     missing_reason=missing_reason)
     simulated = float(traj.t[-1] - traj.t[0]) if len(traj.t) > 1 else 0.0
-    wall = traj.wall_time if traj.wall_time is not None else run_seconds
     result.update(
         status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
-        worst=verdict.worst, wall_time=wall, simulated_time=simulated,
-        cost=_cost(wall, simulated), failure=traj.failure, series=ms.series,
+        worst=verdict.worst, simulated_time=simulated, failure=traj.failure, series=ms.series,
         engine_version=traj.meta.get("engine_version", result.get("engine_version")),
         effective=_small(traj.meta.get("effective") or traj.meta.get("settings")),
         samples=len(traj.t),

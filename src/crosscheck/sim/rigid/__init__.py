@@ -4,7 +4,8 @@ Public API:
 
 * :func:`compile_model` (Scene -> :class:`RigidModel`), :func:`state_from_scene`
   (-> :class:`RigidState`), :class:`RigidSimulation` (model + integrator: ``advance``,
-  ``observe``, ``derivative``), :func:`simulate` (Scene, integrator, dt -> recorder, run info).
+  ``observe``, ``derivative``); the engine adapter (engines/inhouse.py) opens a session on it
+  and the run driver (engines/driver.py) records and times it.
 * :data:`INTEGRATORS` / :func:`get_integrator`: the registry (name, order, symplectic, rotation).
 * The generic ODE interface used by the DOP853 reference: :func:`initial_state` (flat y0),
   :func:`state_derivative` (f(t, y)) and :func:`state_to_trajectory`, all on the same kernels.
@@ -23,11 +24,11 @@ from crosscheck.sim.rigid.model import (
     compile_model,
     state_from_scene,
 )
-from crosscheck.sim.rigid.simulation import RigidSimulation, RunInfo, simulate
+from crosscheck.sim.rigid.simulation import RigidSimulation
 
 __all__ = [
     "DEFAULT", "INTEGRATORS", "Integrator", "RigidModel", "RigidSimulation", "RigidState",
-    "RunInfo", "compile_model", "get_integrator", "initial_state", "simulate",
+    "compile_model", "get_integrator", "initial_state",
     "state_derivative", "state_from_scene", "state_to_trajectory",
 ]
 

@@ -1,0 +1,293 @@
+"""The one run driver: sampling, recording, blow-up detection and cost, the same for every engine.
+
+A run is two passes over sessions the adapter opens (engines/session.py):
+
+* **Accuracy pass** (:func:`record`): the scene's t = 0 state, then ``advance(k)`` and
+  ``read_raw()`` at every sample of the sampling plan (or the session's fused fast path, which
+  must fill the same rows), the rows converted to crosscheck's convention once at the end. A
+  step the engine reports as failed, a non-finite sample, or the total energy running away
+  beyond ``runaway_factor`` times what the scene can exchange ends the run there: the
+  Trajectory holds the samples before it and ``meta["failure"] = {"time", "reason"}``.
+* **Cost pass** (:func:`measure_cost`): fresh sessions, no recording. Each repetition opens a
+  session, takes one warm-up step (compilation, caches and first-call allocations happen there,
+  never in the timed region), then times ``advance(steps)`` over the steps the accuracy pass
+  took, wall clock and process CPU time. Repeated until at least ``min_repeats`` runs and
+  ``min_seconds`` of timed stepping (or ``budget_seconds`` of it); reported as minimum, median
+  and maximum. docs/metrics.md defines cost from these figures.
+
+The driver never raises for a blow-up: failure is data.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from crosscheck.engines.base import SamplingPlan, sampling_plan
+from crosscheck.engines.session import Session, StepFailure
+from crosscheck.rotations import sign_continuous
+from crosscheck.scene.model import Scene
+from crosscheck.state import Trajectory
+
+# |E(t) - E(0)| > RUNAWAY_FACTOR * energy_scale stops a run as a blow-up. energy_scale bounds the
+# energy the scene can exchange (initial kinetic and spring energy plus the work gravity and the
+# loads can do in the run), so no physical run comes near; the comparer flags blow-ups from 10x
+# on, and this much larger factor only marks where a run that has already exploded is cut.
+RUNAWAY_FACTOR = 1e6
+
+
+@dataclass(frozen=True)
+class CostPlan:
+    """How the cost pass repeats: at least ``min_repeats`` timed runs and ``min_seconds`` of
+    timed stepping, at most ``max_repeats`` runs, and no new run once ``budget_seconds`` of
+    timed stepping are spent (a long fluid run is then timed fewer than min_repeats times,
+    and the report says how many)."""
+
+    min_repeats: int = 3
+    min_seconds: float = 0.2
+    max_repeats: int = 50
+    budget_seconds: float = 15.0
+
+
+@dataclass
+class Cost:
+    """Timed stepping of one run: seconds per repetition, wall and process CPU."""
+
+    steps: int
+    simulated: float  # s of simulated time the timed steps cover
+    wall: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The figures docs/metrics.md defines ("Cost")."""
+        if not self.wall or self.simulated <= 0:
+            return {"steps": self.steps, "simulated_time": self.simulated, "repeats": 0,
+                    "note": self.note or "nothing was timed"}
+        w_min, w_med, w_max = min(self.wall), statistics.median(self.wall), max(self.wall)
+        per = 1.0 / self.simulated
+        return {
+            "steps": self.steps,
+            "simulated_time": self.simulated,
+            "repeats": len(self.wall),
+            "wall_min": w_min, "wall_median": w_med, "wall_max": w_max,
+            "cpu_min": min(self.cpu), "cpu_median": statistics.median(self.cpu),
+            "per_simulated_second": w_min * per,
+            "per_simulated_second_median": w_med * per,
+            "cpu_per_simulated_second": min(self.cpu) * per,
+            # The spread of the repetitions, relative to the minimum (0 with one repetition).
+            "spread": (w_max - w_min) / w_min if w_min > 0 else 0.0,
+            "us_per_step": 1e6 * w_min / self.steps if self.steps else None,
+            "note": self.note,
+        }
+
+
+@dataclass
+class RunResult:
+    """What one run of one engine on one scene produced: a Trajectory (rigid bodies), a
+    FluidRecord (a fluid), or both for a coupled scene; and its cost."""
+
+    trajectory: Trajectory | None = None
+    fluid: Any = None  # crosscheck.sim.fluid.FluidRecord
+    cost: Cost | None = None
+
+    @property
+    def output(self):
+        """The primary output: the Trajectory, else the FluidRecord."""
+        return self.trajectory if self.trajectory is not None else self.fluid
+
+    @property
+    def failure(self) -> dict | None:
+        out = self.output
+        return None if out is None else getattr(out, "failure", None)
+
+
+# -- blow-up detection ---------------------------------------------------------------------------
+def energy_scale(scene: Scene, first: Trajectory) -> float:
+    """A generous bound on the energy the scene can exchange in its run (see RUNAWAY_FACTOR)."""
+    from crosscheck.quantities import kinetic_energy, spring_potential_energy
+
+    total = float(kinetic_energy(scene, first)[0] + spring_potential_energy(scene, first)[0])
+    duration = scene.run.duration
+    d = scene.dimension
+    forces = np.zeros((len(scene.bodies), d))
+    torques = np.zeros((len(scene.bodies), 3 if d == 3 else 1))
+    if scene.effects.gravity is not None:
+        forces += scene.masses[:, None] * np.asarray(scene.effects.gravity, float)
+    for load in scene.effects.loads:
+        forces[load.body] += load.force
+        torques[load.body] += np.asarray(load.torque, float).reshape(-1)
+    for i, body in enumerate(scene.bodies):
+        f = float(np.linalg.norm(forces[i]))
+        total += f * (float(np.linalg.norm(body.velocity)) * duration
+                      + f * duration**2 / (2.0 * body.mass))
+        tau = float(np.linalg.norm(torques[i]))
+        if tau > 0:
+            i_min = float(np.min(np.linalg.eigvalsh(np.atleast_2d(body.inertia))))
+            total += tau * (float(np.linalg.norm(body.angular_velocity)) * duration
+                            + tau * duration**2 / (2.0 * i_min))
+    return max(total, 1e-12)
+
+
+def _trajectory(scene: Scene, t: np.ndarray, arrays, extras, meta) -> Trajectory:
+    com, rot, vel, omega = arrays
+    traj = Trajectory(t=t, com=com, vel=vel, omega=omega, meta=meta,
+                      extras={k: np.asarray(v) for k, v in (extras or {}).items()})
+    if scene.dimension == 3:
+        traj.quat = sign_continuous(rot)
+    else:
+        # The engine's accumulated (continuous) angle. No np.unwrap: it assumes less than half a
+        # turn between samples and would fold a fast spin sampled coarsely back by 2 pi.
+        traj.angle = rot
+    return traj
+
+
+def _runaway(scene: Scene, traj: Trajectory, factor: float) -> tuple[int | None, str, float]:
+    """(index of the first sample whose energy ran away or None, reason, energy scale)."""
+    from crosscheck.quantities import total_energy
+
+    if not len(traj.t):
+        return None, "", float("nan")
+    first = Trajectory(t=traj.t[:1], com=traj.com[:1], vel=traj.vel[:1], omega=traj.omega[:1],
+                       quat=None if traj.quat is None else traj.quat[:1],
+                       angle=None if traj.angle is None else traj.angle[:1])
+    scale = energy_scale(scene, first)
+    energy = total_energy(scene, traj)
+    bad = np.flatnonzero(~(np.abs(energy - energy[0]) <= factor * scale))
+    if not bad.size:
+        return None, "", scale
+    j = int(bad[0])
+    return j, (f"energy runaway: |E - E0| = {abs(energy[j] - energy[0]):.3g} J > {factor:g} x "
+               f"energy scale {scale:.3g} J"), scale
+
+
+# -- the accuracy pass ---------------------------------------------------------------------------
+def _record_generic(session: Session, rows: np.ndarray, k: int) -> tuple[int, str | None]:
+    """rows[0] = the current state; then k steps and a read per row. Returns (valid rows,
+    failure reason or None); rows from the failure on are not valid."""
+    rows[0] = session.read_raw()
+    advance, read = session.advance, session.read_raw
+    isfinite = math.isfinite
+    for i in range(1, len(rows)):
+        try:
+            advance(k)
+        except StepFailure as exc:
+            return i, str(exc)
+        row = rows[i]
+        row[:] = read()
+        # One sum decides for a finite row (NaN and inf propagate); an overflow of the sum
+        # itself is resolved by the exact test.
+        if not isfinite(row.sum()) and not np.isfinite(row).all():
+            return i, "non-finite state"
+    return len(rows), None
+
+
+def record(session: Session, scene: Scene, plan: SamplingPlan, *,
+           runaway_factor: float = RUNAWAY_FACTOR, fused: bool = True, label: str = ""
+           ) -> tuple[Trajectory, int]:
+    """The accuracy pass on an open session. Returns (Trajectory, steps taken to its last
+    sample); ``meta`` holds the failure, ``effective`` settings and the blow-up criterion."""
+    n, k = plan.n_samples, plan.steps_per_sample
+    rows = np.empty((n, session.row_width))
+    problems = list(session.check())
+    if problems:
+        rows[0] = session.read_raw()
+        count, reason = 1, f"{label or 'engine'} settings: " + "; ".join(problems)
+        failure_time = 0.0
+    else:
+        fast = getattr(session, "record", None) if fused else None
+        if fast is not None and getattr(session, "fused", False):
+            count, reason = fast(n, k, rows)
+            finite = np.isfinite(rows[:count]).all(axis=1)
+            if not finite.all():  # engines' own checks may let a non-finite sample through
+                count, reason = int(np.argmin(finite)), "non-finite state"
+        else:
+            count, reason = _record_generic(session, rows, k)
+        failure_time = plan.time(count) if reason else None
+    t = np.arange(count) * k * plan.dt
+    arrays, extras = session.convert(rows[:count], t)
+    traj = _trajectory(scene, t, arrays, extras, {})
+    j, why, scale = _runaway(scene, traj, runaway_factor)
+    if j is not None:
+        traj = _trajectory(scene, t[:j], tuple(a[:j] for a in arrays),
+                           {key: v[:j] for key, v in extras.items()}, {})
+        failure_time, reason, count = float(t[j]), why, j
+    traj.meta["failure"] = (None if reason is None
+                            else {"time": float(failure_time), "reason": reason})
+    traj.meta["effective"] = dict(session.effective(tuple(a[:count] for a in arrays)),
+                                  steps_per_sample=k)
+    traj.meta["blowup_criterion"] = {
+        "non_finite": "any non-finite value in a sample",
+        "engine": "a step the engine reports as failed",
+        "runaway_factor": runaway_factor, "energy_scale": scale}
+    traj.meta["steps"] = max(count - 1, 0) * k
+    return traj, max(count - 1, 0) * k
+
+
+# -- the cost pass -------------------------------------------------------------------------------
+def measure_cost(open_session, steps: int, dt: float, plan: CostPlan = CostPlan()) -> Cost:
+    """Time ``advance(steps)`` on fresh sessions from ``open_session()``, after a warm-up step."""
+    cost = Cost(steps=steps, simulated=steps * dt)
+    if steps <= 0:
+        cost.note = "no step was taken (the run failed at its first sample)"
+        return cost
+    wall_clock, cpu_clock = time.perf_counter, time.process_time
+    spent = 0.0
+    while len(cost.wall) < plan.max_repeats:
+        session = open_session()
+        try:
+            try:
+                session.advance(1)  # warm-up: compilation and first-call work happen here
+            except StepFailure:
+                pass
+            c0, w0 = cpu_clock(), wall_clock()
+            try:
+                session.advance(steps)
+            except StepFailure:
+                pass  # the time until the engine gave up is the time this run takes
+            wall, cpu = wall_clock() - w0, cpu_clock() - c0
+        finally:
+            session.close()
+        cost.wall.append(wall)
+        cost.cpu.append(cpu)
+        spent += wall
+        if len(cost.wall) >= plan.min_repeats and spent >= plan.min_seconds:
+            break
+        if spent >= plan.budget_seconds:
+            cost.note = (f"stopped after {len(cost.wall)} repetition(s): the timing budget of "
+                         f"{plan.budget_seconds:g} s was spent")
+            break
+    return cost
+
+
+# -- one run -------------------------------------------------------------------------------------
+def run(engine, scene: Scene, integrator: str, dt: float, *,
+        cost: CostPlan | None = CostPlan(), fused: bool = True) -> RunResult:
+    """Both passes of one engine on one scene. ``cost=None`` skips the cost pass."""
+    from crosscheck.errors import EngineUnavailable
+
+    reason = engine.not_applicable(scene, integrator)
+    if reason is not None:
+        raise EngineUnavailable(f"{engine.name}: {reason}")
+    if scene.fluid is not None:
+        return engine.run_fluid(scene, integrator, dt, cost=cost)
+    plan = sampling_plan(scene, dt)
+    session = engine.open(scene, integrator, dt)
+    try:
+        traj, steps = record(session, scene, plan, fused=fused, label=engine.name,
+                             runaway_factor=engine.runaway_factor(scene))
+    finally:
+        session.close()
+    meta = engine.base_meta(scene, integrator, dt)
+    meta.update(traj.meta)
+    traj.meta = meta
+    result = RunResult(trajectory=traj)
+    if cost is not None:
+        result.cost = measure_cost(lambda: engine.open(scene, integrator, dt), steps, dt, cost)
+        traj.meta["cost"] = result.cost.to_dict()
+    return result
