@@ -100,7 +100,8 @@ class EngineBase:
 
         return run(self, scene, integrator, dt, cost=None).output
 
-    def run_fluid(self, scene: Scene, integrator: str, dt: float, cost=None):
+    def open_fluid(self, scene: Scene, integrator: str, dt: float):
+        """A fluid session (``record()``, ``advance(n)``, ``time``, ``dts``): in-house only."""
         from crosscheck.errors import EngineUnavailable
 
         raise EngineUnavailable(f"{self.name} has no grid fluid")

@@ -230,9 +230,14 @@ def record(session: Session, scene: Scene, plan: SamplingPlan, *,
 
 
 # -- the cost pass -------------------------------------------------------------------------------
-def measure_cost(open_session, steps: int, dt: float, plan: CostPlan = CostPlan()) -> Cost:
-    """Time ``advance(steps)`` on fresh sessions from ``open_session()``, after a warm-up step."""
-    cost = Cost(steps=steps, simulated=steps * dt)
+def measure_cost(open_session, steps: int, dt: float | None, plan: CostPlan = CostPlan()
+                 ) -> Cost:
+    """Time ``advance(steps)`` on fresh sessions from ``open_session()``, after a warm-up step.
+
+    The simulated time covered is ``steps * dt``, or for a session with its own clock
+    (``session.time``, adaptive steps) the span it advanced in the timed region.
+    """
+    cost = Cost(steps=steps, simulated=steps * dt if dt else 0.0)
     if steps <= 0:
         cost.note = "no step was taken (the run failed at its first sample)"
         return cost
@@ -245,12 +250,15 @@ def measure_cost(open_session, steps: int, dt: float, plan: CostPlan = CostPlan(
                 session.advance(1)  # warm-up: compilation and first-call work happen here
             except StepFailure:
                 pass
+            start = getattr(session, "time", None)
             c0, w0 = cpu_clock(), wall_clock()
             try:
                 session.advance(steps)
             except StepFailure:
                 pass  # the time until the engine gave up is the time this run takes
             wall, cpu = wall_clock() - w0, cpu_clock() - c0
+            if start is not None:  # a session with its own clock (adaptive steps): its span
+                cost.simulated = session.time - start
         finally:
             session.close()
         cost.wall.append(wall)
@@ -275,7 +283,7 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     if reason is not None:
         raise EngineUnavailable(f"{engine.name}: {reason}")
     if scene.fluid is not None:
-        return engine.run_fluid(scene, integrator, dt, cost=cost)
+        return _run_fluid(engine, scene, integrator, dt, cost)
     plan = sampling_plan(scene, dt)
     session = engine.open(scene, integrator, dt)
     try:
@@ -290,4 +298,24 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     if cost is not None:
         result.cost = measure_cost(lambda: engine.open(scene, integrator, dt), steps, dt, cost)
         traj.meta["cost"] = result.cost.to_dict()
+    return result
+
+
+def _run_fluid(engine, scene: Scene, integrator: str, dt: float, cost: CostPlan | None
+               ) -> RunResult:
+    """A fluid scene: the session records its own samples (adaptive steps land on them);
+    the cost pass times the same number of steps without recording."""
+    session = engine.open_fluid(scene, integrator, dt)
+    try:
+        record_ = session.record()
+        steps = len(session.dts)
+    finally:
+        session.close()
+    for key, value in engine.base_meta(scene, integrator, dt).items():
+        record_.meta.setdefault(key, value)
+    result = RunResult(fluid=record_)
+    if cost is not None:
+        result.cost = measure_cost(lambda: engine.open_fluid(scene, integrator, dt), steps,
+                                   None, cost)
+        record_.meta["cost"] = result.cost.to_dict()
     return result

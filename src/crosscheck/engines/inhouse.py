@@ -7,7 +7,7 @@ The observed quantities are exactly the Trajectory convention: the state's x *is
 mass (world), its q the orientation of the declared body frame, P / m the centre-of-mass
 velocity and R I_body^-1 R^T L the world angular velocity, so nothing is converted.
 
-Fluid scenes (``scene.fluid``) are delegated to :func:`crosscheck.sim.fluid.run_fluid`, imported
+Fluid scenes (``scene.fluid``) open a :class:`crosscheck.sim.fluid.FluidRun`, imported
 lazily: if that package cannot be imported the scene is "not applicable" with the reason.
 
 A step the kernels cannot take (a singular implicit system) raises StepFailure, which the driver
@@ -53,8 +53,8 @@ def _fluid_module():
         module = importlib.import_module("crosscheck.sim.fluid")
     except Exception as exc:  # noqa: BLE001 - any import failure makes fluid not applicable
         return None, f"the in-house fluid solver cannot be imported ({type(exc).__name__}: {exc})"
-    if not hasattr(module, "run_fluid"):
-        return None, "crosscheck.sim.fluid has no run_fluid yet"
+    if not hasattr(module, "FluidRun"):
+        return None, "crosscheck.sim.fluid has no FluidRun"
     return module, None
 
 
@@ -123,20 +123,13 @@ class InhouseEngine(EngineBase):
     def open(self, scene: Scene, integrator: str, dt: float) -> InhouseSession:
         return InhouseSession(scene, integrator, dt)
 
-    def run_fluid(self, scene: Scene, integrator: str, dt: float, cost=None):
+    def open_fluid(self, scene: Scene, integrator: str, dt: float):
         module, reason = _fluid_module()
         if module is None:  # pragma: no cover - not_applicable said so already
             from crosscheck.errors import EngineUnavailable
 
             raise EngineUnavailable(f"inhouse: {reason}")
-        from crosscheck.engines.driver import RunResult
-
-        record = module.run_fluid(scene, integrator, dt)
-        meta = getattr(record, "meta", None)
-        if isinstance(meta, dict):
-            for key, value in self.base_meta(scene, integrator, dt).items():
-                meta.setdefault(key, value)
-        return RunResult(fluid=record)
+        return module.FluidRun(scene, integrator, dt)
 
 
 class InhouseSession:

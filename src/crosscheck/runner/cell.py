@@ -293,18 +293,10 @@ def _finish_fluid(task, scene, record, result, run_seconds):
     verdict = judge(scene, task["engine"], task["integrator"], metrics, blowup_time=blow_t,
                     blowup_reason=(failure or {}).get("reason"), missing_reason=note)
     meta = getattr(record, "meta", {}) or {}
-    wall = None
-    for key in ("wall_time", "wall_time_total", "wall"):
-        if isinstance(meta.get(key), int | float):
-            wall = float(meta[key])
-            break
-    if wall is None:
-        wall = run_seconds
     t = np.asarray(getattr(record, "t", []), float)
     simulated = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     result.update(status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
-                  worst=verdict.worst, wall_time=wall, simulated_time=simulated,
-                  cost=_cost(wall, simulated), failure=failure, fluid=True,
+                  worst=verdict.worst, simulated_time=simulated, failure=failure, fluid=True,
                   engine_version=meta.get("engine_version", result.get("engine_version")))
     if verdict.status in ("fail", "error", "blowup"):
         result["metric_table"] = metric_table(verdict.metrics)
