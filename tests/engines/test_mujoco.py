@@ -560,22 +560,17 @@ torque = [0.02, 0.0, -0.01]
 
 
 @pytest.mark.parametrize("effects", [SPRING, SPRING + LOAD], ids=["spring", "spring+load"])
-def test_rollout_nstep_and_single_steps_are_bit_identical(effects):
-    # The default recorder (a compiled loop calling the C mj_step), the stateless
-    # mujoco.rollout in chunks (loads passed as xfrc_applied controls), mj_step(m, d, nstep=k)
-    # per sample and k single mj_step calls are the same arithmetic: bit-identical samples.
-    # Runs repeat bit for bit.
+def test_compiled_nstep_and_single_steps_are_bit_identical(effects):
+    # The fused fast path (a compiled loop calling the C mj_step), the driver's generic loop
+    # (mj_step(m, d, nstep=k) per sample) and k single mj_step calls are the same arithmetic:
+    # bit-identical samples. Runs repeat bit for bit.
     scene = scene3d(effects=effects)
     stepped = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "nstep"')
-    rolled = scene3d(effects=effects, options='[engine_options.mujoco]\nstepping = "rollout"')
     a, b = ENGINE.run(scene, "rk4", 1e-3), ENGINE.run(stepped, "rk4", 1e-3)
-    c = ENGINE.run(rolled, "rk4", 1e-3)
     assert a.meta["effective"]["stepping"].startswith("compiled loop")
     assert b.meta["effective"]["stepping"].startswith("mj_step")
-    assert c.meta["effective"]["stepping"].startswith("mujoco.rollout")
     for name in ("com", "quat", "vel", "omega"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-        np.testing.assert_array_equal(getattr(a, name), getattr(c, name))
     again = ENGINE.run(scene, "rk4", 1e-3)
     np.testing.assert_array_equal(again.quat, a.quat)
 
@@ -588,19 +583,6 @@ def test_rollout_nstep_and_single_steps_are_bit_identical(effects):
     np.testing.assert_array_equal(sim.data.qvel, single.data.qvel)
 
 
-def test_rollout_chunks_join_exactly(monkeypatch):
-    # Long rollouts are cut in chunks (memory bound); chunk boundaries must not show.
-    import crosscheck.engines.mujoco as adapter
-
-    scene = scene3d(duration=0.5, effects=SPRING + LOAD,
-                    options='[engine_options.mujoco]\nstepping = "rollout"')
-    whole = ENGINE.run(scene, "euler", 1e-3)
-    monkeypatch.setattr(adapter, "ROLLOUT_CHUNK_BYTES", 8 * 14 * 30)  # 3 samples per chunk
-    chunked = ENGINE.run(scene, "euler", 1e-3)
-    np.testing.assert_array_equal(whole.com, chunked.com)
-    np.testing.assert_array_equal(whole.quat, chunked.quat)
-
-
 def test_meta_reads_settings_back():
     scene = scene3d(effects="gravity = [0.0, 0.0, -9.81]")
     traj = ENGINE.run(scene, "implicitfast", 2e-3)
@@ -610,7 +592,7 @@ def test_meta_reads_settings_back():
     eff = meta["effective"]
     assert eff["timestep"] == 2e-3 and eff["integrator"] == "mjINT_IMPLICITFAST"
     assert eff["steps_per_sample"] == 5 and eff["ngeom"] == 0
-    assert meta["wall_time"] > 0 and meta["wall_time_recording"] >= 0
+    assert meta["steps"] == 500 and meta["failure"] is None
     np.testing.assert_allclose(np.diff(traj.t), 0.01, rtol=1e-12)
 
 
@@ -618,10 +600,11 @@ def test_meta_reads_settings_back():
 def test_blow_up_is_a_result_not_a_reset(stiffness, tmp_path, monkeypatch):
     # A spring too stiff for the step: w ~ 201 rad/s at h = 0.01 (w h ~ 2.01 > 2), so
     # semi-implicit Euler's amplitude grows by 1.15 to 1.22 per step. MuJoCo flags the state once
-    # |qacc| > 1e10 (x ~ 2.5e5 m, 0.58 s or 0.93 s in: before and after the step loop's first
-    # check at sample 64, so both its replay paths run). The run ends with a failure at the
-    # same sample time with every recorder; it does not raise, and MuJoCo does not silently
-    # reset the state (autoreset disabled).
+    # |qacc| > 1e10 (x ~ 2.5e5 m, 0.58 s or 0.93 s in). With the driver's energy-runaway cut
+    # switched off, the run ends at MuJoCo's own flag, at the same sample time on the fused
+    # and the generic path; it does not raise, and MuJoCo does not silently reset the state
+    # (autoreset disabled). With the cut on (the default) the run ends earlier, at the first
+    # sample whose energy ran away, on both paths alike.
     monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
     effects = f"""
 [[effects.springs]]
@@ -629,23 +612,33 @@ a = "body"
 anchor = [0.1, -0.2, 0.0]
 stiffness = {stiffness}
 """
-    runs = {}
-    for stepping in ("nstep", "rollout", "compiled"):
+    from crosscheck.engines.base import sampling_plan
+    from crosscheck.engines.driver import record
+
+    runs, cut = {}, {}
+    for stepping in ("nstep", "compiled"):
         options = f'[engine_options.mujoco]\nstepping = "{stepping}"'
         scene = scene3d(duration=3.0, dt=0.01, com=[0, 0, 0], effects=effects, omega=(0, 0, 0),
                         velocity=(0, 0, 0), options=options)
-        traj = runs[stepping] = ENGINE.run(scene, "euler", 0.01)
+        session = ENGINE.open(scene, "euler", 0.01)
+        assert session.fused == (stepping == "compiled")
+        traj, _ = record(session, scene, sampling_plan(scene, 0.01), runaway_factor=np.inf)
+        runs[stepping] = traj
         assert traj.failure is not None and traj.failure["reason"].startswith("MuJoCo flagged")
         assert 0.4 < traj.failure["time"] < 1.5
         assert len(traj.t) == round(traj.failure["time"] / 0.01)
         assert np.all(np.isfinite(traj.com)) and np.all(np.abs(traj.com) < 1e10)
         assert np.max(np.abs(traj.com[-1, 0] - traj.com[0, 0])) > 1e3  # it did grow
-    assert runs["nstep"].failure == runs["rollout"].failure == runs["compiled"].failure
-    np.testing.assert_array_equal(runs["nstep"].com, runs["rollout"].com)
+        cut[stepping] = ENGINE.run(scene, "euler", 0.01)
+        assert cut[stepping].failure["reason"].startswith("energy runaway")
+        assert cut[stepping].failure["time"] < traj.failure["time"]
+    assert runs["nstep"].failure == runs["compiled"].failure
+    assert cut["nstep"].failure == cut["compiled"].failure
     np.testing.assert_array_equal(runs["nstep"].com, runs["compiled"].com)
     # Sensitivity: with MuJoCo's default autoreset the same stepping stays finite (reset to
     # qpos0 and time 0 over and over), so no recorder could see the blow-up.
     sim = ENGINE.build(scene, "euler", 0.01)
     sim.model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-    sim.advance(300)
+    for _ in range(300):
+        mujoco.mj_step(sim.model, sim.data)
     assert np.all(np.isfinite(sim.data.qpos)) and sim.data.time < 1.0

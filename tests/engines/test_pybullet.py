@@ -699,8 +699,18 @@ a = "b"
 anchor = [0.0, 0.0, 0.0]
 stiffness = 2e8
 """)
-    traj = get_engine("pybullet").run(scene, "multibody", 1e-3)
+    from crosscheck.engines.base import sampling_plan
+    from crosscheck.engines.driver import record
+
+    # The engine's own state overflows: with the driver's energy-runaway cut off, the run
+    # ends at the first non-finite sample; with it on (the default), earlier.
+    session = get_engine("pybullet").open(scene, "multibody", 1e-3)
+    traj, _ = record(session, scene, sampling_plan(scene, 1e-3), runaway_factor=np.inf)
+    session.close()
     assert traj.failure is not None and traj.failure["reason"] == "non-finite state"
+    cut = get_engine("pybullet").run(scene, "multibody", 1e-3)
+    assert cut.failure["reason"].startswith("energy runaway")
+    assert cut.failure["time"] < traj.failure["time"]
     assert 0 < traj.failure["time"] < 2.0
     assert np.all(np.isfinite(traj.com)) and len(traj.t) < 2001
 

@@ -1,0 +1,267 @@
+"""The one run driver: fused fast paths against the generic loop, blow-ups, cost, sessions.
+
+Every fused fast path (MuJoCo's and Pymunk's compiled loops) must fill exactly the rows the
+driver's generic loop (``advance(k)`` then ``read_raw()``) fills and stop at the same sample. A
+slip (another body, another field, the wrong order, the state one step early or late, a blow-up
+at another sample) changes bits on these scenes, where every field moves.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from crosscheck.engines import get_engine
+from crosscheck.engines.base import sampling_plan
+from crosscheck.engines.driver import CostPlan, measure_cost, record
+from crosscheck.engines.session import Session, StepFailure, read
+from crosscheck.scene.loader import load_case_text
+
+SPRINGS_2D = """
+[case]
+name = "two-plates"
+dimension = 2
+[run]
+duration = 0.5
+dt = 1e-3
+sample_every = 0.007
+[effects]
+gravity = [0.0, -9.81]
+[[effects.springs]]
+a = "a"
+attach_a = [0.05, 0.02]
+anchor = [0.0, 2.0]
+stiffness = 50.0
+damping = 0.3
+rest_length = 0.5
+[[effects.springs]]
+a = "a"
+b = "b"
+attach_b = [-0.03, 0.01]
+stiffness = 30.0
+damping = 0.1
+[[bodies]]
+name = "a"
+shape = { box = { size = [0.3, 0.1] } }
+mass = 1.5
+com = [0.04, -0.03]
+position = [0.2, 1.0]
+orientation = 0.4
+velocity = [1.0, -0.5]
+angular_velocity = 3.0
+[[bodies]]
+name = "b"
+shape = { circle = { radius = 0.1 } }
+mass = 0.7
+com = [0.01, 0.02]
+position = [0.6, 0.8]
+angular_velocity = -2.0
+"""
+
+SPINNERS_3D = """
+[case]
+name = "two-spinners"
+dimension = 3
+[run]
+duration = 0.5
+dt = 1e-3
+sample_every = 0.007
+[effects]
+gravity = [0.0, 0.0, -9.81]
+[[bodies]]
+name = "a"
+shape = { box = { size = [0.3, 0.1, 0.2] } }
+mass = 1.5
+com = [0.04, -0.03, 0.02]
+inertia = [[0.02, 0.001, 0.0], [0.001, 0.03, 0.002], [0.0, 0.002, 0.04]]
+position = [0.2, 1.0, 0.5]
+orientation = { axis = [1, 2, 3], angle = 0.7 }
+velocity = [1.0, -0.5, 0.2]
+angular_velocity = [3.0, 1.0, -2.0]
+[[bodies]]
+name = "b"
+shape = { sphere = { radius = 0.1 } }
+mass = 0.7
+position = [0.6, 0.8, 0.3]
+velocity = [0.0, 0.3, 1.0]
+angular_velocity = [0.5, 0.0, -2.0]
+"""
+
+# A spring far too stiff for the step: the state overflows within the run (Pymunk: sqrt(k/m) h
+# = 10 > 2; PyBullet's symplectic Euler: 7 > 2), and the run must end at the same sample.
+BLOWUP = """
+[case]
+name = "blow-up"
+dimension = {dim}
+[run]
+duration = 2.0
+dt = 1e-3
+sample_every = 0.003
+[[effects.springs]]
+a = "a"
+anchor = {anchor}
+stiffness = {k}
+[[bodies]]
+name = "a"
+shape = {{ {shape} = {{ radius = 0.1 }} }}
+mass = 2.0
+position = {position}
+"""
+
+
+
+
+def _both_paths(engine_name, scene, integrator, runaway_factor=1e6):
+    """(fused, generic) Trajectories of the same run through the driver."""
+    engine = get_engine(engine_name)
+    plan = sampling_plan(scene, scene.run.dt)
+    out = []
+    for fused in (True, False):
+        session = engine.open(scene, integrator, scene.run.dt)
+        try:
+            if fused:
+                assert session.fused  # the fast path is the one the driver uses here
+            traj, _ = record(session, scene, plan, fused=fused, runaway_factor=runaway_factor)
+        finally:
+            session.close()
+        out.append(traj)
+    return out
+
+
+def _assert_same(a, b):
+    for name in ("t", "com", "quat", "angle", "vel", "omega"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None)
+        if x is not None:
+            np.testing.assert_array_equal(x, y)
+    assert a.failure == b.failure
+
+
+@pytest.mark.parametrize(("engine", "text", "integrator"), [
+    ("pymunk", SPRINGS_2D, "position_first"),
+    ("mujoco", SPINNERS_3D, "rk4"),
+    ("mujoco", SPRINGS_2D, "euler"),
+], ids=["pymunk-2d-springs", "mujoco-3d", "mujoco-2d-springs"])
+def test_fused_path_equals_the_generic_loop(engine, text, integrator):
+    scene = load_case_text(text)
+    fused, generic = _both_paths(engine, scene, integrator)
+    assert np.ptp(fused.com[:, 0, 1]) > 0.01  # it moves
+    _assert_same(fused, generic)
+    plan = sampling_plan(scene, scene.run.dt)
+    np.testing.assert_array_equal(fused.t, np.arange(plan.n_samples) * plan.steps_per_sample
+                                  * scene.run.dt)
+
+
+@pytest.mark.parametrize("runaway_factor", [np.inf, 1e6], ids=["engine-check", "runaway-cut"])
+def test_fused_path_stops_at_the_same_blow_up(runaway_factor):
+    scene = load_case_text(BLOWUP.format(dim=2, shape="circle", anchor="[0.0, 0.0]", k="2e8",
+                                         position="[0.3, 0.0]"))
+    fused, generic = _both_paths("pymunk", scene, "position_first", runaway_factor)
+    assert fused.failure is not None
+    assert fused.failure["reason"] == ("non-finite state" if runaway_factor == np.inf
+                                       else fused.failure["reason"])
+    assert len(fused.t) < sampling_plan(scene, scene.run.dt).n_samples
+    assert fused.failure["time"] == pytest.approx(len(fused.t) * 3e-3, rel=1e-12)
+    _assert_same(fused, generic)
+
+
+@pytest.mark.parametrize("engine", ["inhouse", "mujoco", "pybullet"])
+def test_every_engine_cuts_a_runaway_at_the_first_sample_past_the_bound(engine):
+    # The driver's energy criterion is the same for every engine: the run ends no later than
+    # the first sample whose energy is beyond 1e6 times what the scene can exchange (MuJoCo's
+    # own instability flag may fire first), and the Trajectory keeps the samples before it.
+    from crosscheck.quantities import total_energy
+
+    scene = load_case_text(BLOWUP.format(dim=3, shape="sphere", anchor="[0.0, 0.0, 0.0]",
+                                         k="2e8", position="[0.3, 0.0, 0.0]"))
+    integrator = {"inhouse": "symplectic_euler", "mujoco": "euler",
+                  "pybullet": "multibody"}[engine]
+    traj = get_engine(engine).run(scene, integrator, 1e-3)
+    failure = traj.failure
+    assert failure["reason"].startswith(("energy runaway", "MuJoCo flagged"))
+    if engine != "mujoco":
+        assert failure["reason"].startswith("energy runaway")
+    scale = traj.meta["blowup_criterion"]["energy_scale"]
+    energy = total_energy(scene, traj)
+    assert np.all(np.abs(energy - energy[0]) <= 1e6 * scale)  # every kept sample is within
+    assert failure["time"] == pytest.approx(len(traj.t) * 3e-3, rel=1e-12)
+
+
+class _SlowFirstCall:
+    """A session whose first advance costs 0.3 s (like compilation), then 1 us a step."""
+
+    fused = False
+    row_width = 1
+    calls = 0
+
+    def advance(self, n):
+        type(self).calls += 1
+        time.sleep(0.3 if type(self).calls == 1 else 1e-6 * n)
+
+    def close(self):
+        pass
+
+
+def test_cost_never_counts_the_first_call_and_is_repeated():
+    _SlowFirstCall.calls = 0
+    cost = measure_cost(_SlowFirstCall, steps=10_000, dt=1e-3,
+                        plan=CostPlan(min_repeats=3, min_seconds=0.0))
+    d = cost.to_dict()
+    # 10 000 steps at 1 us: ~10 ms each; the 0.3 s first call is the warm-up, never timed.
+    assert d["repeats"] == 3 and d["wall_max"] < 0.2
+    assert d["wall_min"] <= d["wall_median"] <= d["wall_max"]
+    assert d["per_simulated_second"] == pytest.approx(d["wall_min"] / 10.0)
+    assert d["spread"] == pytest.approx((d["wall_max"] - d["wall_min"]) / d["wall_min"])
+
+
+def test_cost_stops_at_its_budget_and_says_so():
+    class Slow(_SlowFirstCall):
+        def advance(self, n):
+            time.sleep(0.05)
+
+    cost = measure_cost(Slow, steps=10, dt=1e-3,
+                        plan=CostPlan(min_repeats=50, min_seconds=0.0, budget_seconds=0.12))
+    assert len(cost.wall) == 3 and "budget" in cost.note
+
+
+def test_a_step_failure_in_the_cost_pass_still_counts_its_time():
+    class Failing(_SlowFirstCall):
+        def advance(self, n):
+            time.sleep(0.01)
+            raise StepFailure("boom")
+
+    cost = measure_cost(Failing, steps=10, dt=1e-3, plan=CostPlan(min_repeats=2, min_seconds=0))
+    assert len(cost.wall) == 2 and min(cost.wall) >= 0.009
+
+
+@pytest.mark.parametrize(("engine", "text", "integrator"), [
+    ("inhouse", SPINNERS_3D, "rk4"), ("mujoco", SPINNERS_3D, "rk4"),
+    ("pybullet", SPINNERS_3D, "multibody"), ("pybullet", SPINNERS_3D, "maximal"),
+    ("inhouse", SPRINGS_2D, "rk4"), ("mujoco", SPRINGS_2D, "euler"),
+    ("pybullet", SPRINGS_2D, "multibody"), ("pybullet", SPRINGS_2D, "maximal"),
+    ("pymunk", SPRINGS_2D, "position_first"),
+])
+def test_set_state_places_what_read_returns(engine, text, integrator):
+    # Every adapter is a Session; a state read from one session and set on a fresh one reads
+    # back the same (to round-off: each engine stores its own coordinates), and both then step
+    # alike.
+    scene = load_case_text(text)
+    eng = get_engine(engine)
+    a, b = eng.open(scene, integrator, 1e-3), eng.open(scene, integrator, 1e-3)
+    try:
+        assert isinstance(a, Session)
+        a.advance(50)
+        state = read(a)
+        b.set_state(*state)
+        again = read(b)
+        for x, y in zip(state, again, strict=True):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
+        a.advance(20)
+        b.advance(20)
+        for x, y in zip(read(a), read(b), strict=True):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-9)
+    finally:
+        a.close()
+        b.close()
