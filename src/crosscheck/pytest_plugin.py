@@ -123,7 +123,9 @@ class CaseFile(pytest.File):
         check_integrators(integrators, refs, option="--crosscheck-integrators")
         matrix = build_matrix([scene], engines=_split(config.getoption("--crosscheck-engines")),
                               integrators=integrators, engine_refs=refs,
-                              reference_dir=_reference_dir(config))
+                              reference_dir=_reference_dir(config),
+                              # pytest items are verdicts; cost is `crosscheck run`'s report
+                              cost=False)
         references = {t["id"]: t for t in matrix.references}
         multi_dt = len({t["dt"] for t in matrix.cells}) > 1
         for task in matrix.cells:

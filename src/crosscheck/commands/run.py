@@ -45,6 +45,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--save-trajectories", action="store_true",
                    help="also write every trajectory as DIR/trajectories/<case>/"
                         "<engine>-<integrator>-dt<dt>.npz")
+    p.add_argument("--no-cost", action="store_true",
+                   help="skip the cost pass (timed stepping without recording): verdicts only")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help=f"worker processes (default: the number of cores, {os.cpu_count()})")
     p.add_argument("--worker-memory", type=float, default=768.0, metavar="MB",
@@ -113,7 +115,7 @@ def _run(args) -> tuple[int, dict]:
     matrix = build_matrix(
         scenes, engines=parse_list(args.engines), integrators=parse_list(args.integrators),
         dts=parse_dts(args.dt), out=args.out, save_trajectories=args.save_trajectories,
-        timeout=args.timeout, engine_refs=refs)
+        timeout=args.timeout, engine_refs=refs, cost=not args.no_cost)
     if not matrix.cells:
         raise UsageError("no cells to run: no case lists any of the selected engines")
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from crosscheck.report.markdown import ORDER, headline
-from crosscheck.report.results import mujoco_cost_ratios
+from crosscheck.report.results import cost_text, mujoco_cost_ratios
 
 STATUS_COLOR = {"pass": "#d9f2d9", "fail": "#f8d0d0", "blowup": "#f3b0b0", "error": "#f0c0f0",
                 "timeout": "#f0d8b0", "not_applicable": "#eeeeee"}
@@ -150,7 +150,7 @@ def _cell_table(cells: list[dict[str, Any]]) -> str:
     names = [n for n in TABLE_METRICS if any(n in (c.get("metrics") or {}) for c in cells)]
     names += extra
     head = ("<tr><th class='l'>engine</th><th class='l'>integrator</th><th>dt</th>"
-            "<th class='l'>status</th><th>cost (s/s)</th><th>cost / MuJoCo</th>"
+            "<th class='l'>status</th><th>cost (s/s, min +spread)</th><th>cost / MuJoCo</th>"
             + "".join(f"<th>{_e(n)}</th>" for n in names)
             + "<th class='l'>worst</th><th class='l'>note</th></tr>")
     rows = [head]
@@ -164,7 +164,7 @@ def _cell_table(cells: list[dict[str, Any]]) -> str:
         rows.append(
             f"<tr style='background:{STATUS_COLOR.get(c['status'], '#fff')}'>"
             f"<td class='l'>{_e(c['engine'])}</td><td class='l'>{_e(c['integrator'])}</td>"
-            f"<td>{c['dt']:g}</td><td class='l'>{_e(status)}</td><td>{_num(c.get('cost'))}</td>"
+            f"<td>{c['dt']:g}</td><td class='l'>{_e(status)}</td><td>{_e(cost_text(c))}</td>"
             f"<td>{_num(ratios.get(c.get('id')))}</td>"
             + "".join(_metric_cell(c, n) for n in names)
             + f"<td class='l'>{_e(worst.get('metric', ''))} {_num(worst.get('ratio'))}</td>"

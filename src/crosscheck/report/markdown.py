@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from crosscheck.report.results import mujoco_cost_ratios
+from crosscheck.report.results import cost_text, mujoco_cost_ratios
 
 ORDER = {"error": 1, "timeout": 1, "blowup": 2, "fail": 3, "pass": 5, "not_applicable": 6}
 ICON = {"pass": "pass", "fail": "**FAIL**", "blowup": "**BLOWUP**", "error": "**ERROR**",
@@ -54,7 +54,7 @@ def render(doc: dict[str, Any]) -> str:
     verdict = {0: "passed", 1: "FAILED"}.get(status, "incomplete")
     lines = [f"## crosscheck {verdict}", "", headline(doc), ""]
     lines += ["| | case | engine | integrator | dt | worst metric | value | limit | "
-              "cost (s/s) | cost / MuJoCo | note |",
+              "cost (s/s, min +spread) | cost / MuJoCo | note |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     ratios = mujoco_cost_ratios(doc.get("cells", []))
     for c in sort_cells(doc.get("cells", [])):
@@ -68,7 +68,7 @@ def render(doc: dict[str, Any]) -> str:
         lines.append(
             f"| {icon} | {_esc(c['case'])} | {c['engine']} | {c['integrator']} | "
             f"{c['dt']:g} | {worst.get('metric', '')} | {_num(worst.get('value'))} | "
-            f"{_num(worst.get('limit'))} | {_num(c.get('cost'))} | "
+            f"{_num(worst.get('limit'))} | {cost_text(c)} | "
             f"{_num(ratios.get(c.get('id')))} | {_esc(note)} |")
     base = doc.get("baseline")
     if base is not None:

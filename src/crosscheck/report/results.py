@@ -125,6 +125,23 @@ def engine_versions(cells: list[dict[str, Any]]) -> dict[str, str]:
 MUJOCO_DEFAULT_INTEGRATOR = "euler"
 
 
+def cost_text(cell: dict[str, Any]) -> str:
+    """A cell's cost for people: minimum with the spread and count of its repetitions
+    ("1.2e-04 +3% n=5"), or why there is none."""
+    cost = cell.get("cost")
+    if cost is None:
+        detail = cell.get("cost_detail") or {}
+        return detail.get("note") or ""
+    detail = cell.get("cost_detail") or {}
+    spread = cell.get("cost_spread")
+    text = f"{cost:.3g}"
+    if spread is not None:
+        text += f" +{100 * spread:.0f}%"
+    if detail.get("repeats"):
+        text += f" n={detail['repeats']}"
+    return text
+
+
 def mujoco_cost_ratios(cells: list[dict[str, Any]]) -> dict[str, float]:
     """Cell id -> its cost divided by MuJoCo's cost measured in the same run.
 
