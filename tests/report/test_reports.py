@@ -133,7 +133,7 @@ def test_html_is_self_contained_and_embeds_its_plots(run_dir):
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
     # Nothing loaded from elsewhere: no external scripts, styles or images.
     assert not re.search(r'(src|href)="(?!data:|#)', html)
-    assert "cost (s/s)" in html and "alpha" in html and "beta" in html
+    assert "cost (s/s, min +spread)" in html and "alpha" in html and "beta" in html
 
 
 def test_summary_lists_failures_before_passes_and_regressions_first(run_dir):
