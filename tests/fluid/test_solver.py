@@ -244,6 +244,7 @@ def test_non_finite_values_are_reported(fluid_case):
     assert rec.failure["time"] < 0.5
 
 
+@pytest.mark.slow
 def test_plots(tmp_path, runs):
     from crosscheck.report.fluid_plots import plot_fluid
 

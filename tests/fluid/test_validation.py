@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from crosscheck.compare.fluid_metrics import fluid_metrics
 from crosscheck.reference.fluid_data import sloshing_period
@@ -54,6 +55,7 @@ def test_dam_break_maccormack(runs):
     assert m["volume_change"] < 0.02
 
 
+@pytest.mark.slow
 def test_lid_driven_cavity_against_ghia(runs):
     # Full 128 x 128 grid of the case file, but run to t = 8 instead of the case's 20 lid time
     # units (a test budget): the centreline profiles are within 0.5 % of Ghia by t = 6 and settle
@@ -80,6 +82,7 @@ def test_sloshing_period(runs):
     assert eta.max() > 0.003 and eta.min() < -0.003    # the wave is still there after 3 periods
 
 
+@pytest.mark.slow
 def test_zalesak_particles_beat_plain_level_set(runs):
     out = {}
     for integ in ("semi_lagrangian", "maccormack", "particle_levelset",

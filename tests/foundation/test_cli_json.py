@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "crosscheck.cli"]
 
@@ -16,6 +18,7 @@ def _run(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=ROOT, timeout=300)
 
 
+@pytest.mark.slow
 def test_run_json_carries_the_free_fall_error_of_explicit_euler(tmp_path):
     out = tmp_path / "run"
     proc = _run("run", "cases/rigid3d/free_fall.toml", "--engines", "inhouse", "--integrators",
@@ -31,6 +34,7 @@ def test_run_json_carries_the_free_fall_error_of_explicit_euler(tmp_path):
     assert json.loads((out / "results.json").read_text())["counts"] == doc["counts"]
 
 
+@pytest.mark.slow
 def test_baseline_compare_json_lists_a_regression(tmp_path):
     out = tmp_path / "run"
     assert _run("run", "cases/rigid3d/free_fall.toml", "--engines", "inhouse", "--integrators",
@@ -51,6 +55,7 @@ def test_baseline_compare_json_lists_a_regression(tmp_path):
     assert any("position_error_max" in json.dumps(r) for r in doc["regressions"])
 
 
+@pytest.mark.slow
 def test_sweep_json_reports_the_order_of_symplectic_euler(tmp_path):
     proc = _run("sweep", "cases/rigid3d/spring_anchor.toml", "--engines", "inhouse",
                 "--integrators", "symplectic_euler", "--dts", "4e-3,2e-3,1e-3",

@@ -114,6 +114,7 @@ def test_pytest_plugin_refuses_a_misspelt_integrator_at_collection(tmp_path):
     assert "Traceback" not in res.stdout and "not applicable" not in res.stdout
 
 
+@pytest.mark.slow
 def test_pytest_plugin_refuses_an_unknown_integrator_option(tmp_path):
     (tmp_path / "cases").mkdir()
     (tmp_path / "cases" / "ok.toml").write_text(CASE.format(name='"rk4"'))

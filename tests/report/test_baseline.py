@@ -108,6 +108,7 @@ def cli(args, cwd):
                           capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_update_then_regression_exits_1_with_old_and_new_values(tmp_path):
     case = tmp_path / "fall.toml"
     case.write_text(CASE.format(duration=1.0))

@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from crosscheck import quantities
 from crosscheck.engines import get_engine
@@ -76,6 +77,7 @@ position = [1.0, 0.0, 0.0]
 """
 
 
+@pytest.mark.slow
 def test_symplectic_euler_bounded_explicit_euler_grows_over_1000_periods():
     w, h = 1.0, 5e-4
     periods = 1000

@@ -54,5 +54,8 @@ def test_explicit_schemes_blow_up_and_report_it(integrator):
     assert isinstance(failure["reason"], str) and failure["reason"]
     assert len(traj.t) >= 1 and traj.t[-1] < failure["time"]
     assert np.all(np.isfinite(traj.com)) and np.all(np.isfinite(traj.vel))
+    # At least two samples were kept (the first step already multiplies the energy by 1e2 or
+    # more, and the runaway cut comes after it), so the growth is measured, not assumed.
     energy = quantities.total_energy(scene, traj)
-    assert len(energy) < 2 or energy[-1] > 10.0 * energy[0]  # it was growing when stopped
+    assert len(energy) >= 2
+    assert np.all(energy[1:] > 10.0 * energy[:-1])  # it was growing at every step it kept

@@ -24,6 +24,7 @@ def cluster():
         yield c
 
 
+@pytest.mark.slow
 def test_matrix_on_a_local_dask_cluster(tmp_path, cluster):
     from crosscheck.runner.dask_backend import DaskBackend
 

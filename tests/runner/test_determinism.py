@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 CASES = ["cases/rigid3d/two_body_spring.toml", "cases/rigid2d/falling_box.toml"]
@@ -30,6 +31,7 @@ def _run(out: Path, workers: int) -> dict[str, dict[str, np.ndarray]]:
     return runs
 
 
+@pytest.mark.slow
 def test_runs_are_bit_identical_across_repeats_and_worker_counts(tmp_path):
     one = _run(tmp_path / "one", workers=1)
     two = _run(tmp_path / "two", workers=2)

@@ -78,6 +78,7 @@ def by_id(outcome):
     return {c["id"]: c for c in outcome.doc["cells"]}
 
 
+@pytest.mark.slow
 def test_every_failure_mode_is_one_cells_result(tmp_path):
     case = write_case(tmp_path, "modes", engines='["inhouse", "mujoco", "pybullet", "pymunk"]',
                       integrators='{ inhouse = ["exact", "euler"], mujoco = ["exact"], '
