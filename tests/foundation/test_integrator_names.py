@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from crosscheck.engines import REGISTRY, get_engine
 from crosscheck import names
+from crosscheck.engines import REGISTRY, get_engine
 from crosscheck.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.scene.model import ENGINE_NAMES
 

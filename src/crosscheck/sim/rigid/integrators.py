@@ -46,12 +46,24 @@ class Integrator:
     rotation: str  # "renormalise" | "exp" | "splitting" (3D)
     evaluations: int  # force evaluations per step
     note: str  # what it does to rotation and why
-    advance3d: Callable  # (model, state, n_steps, h) -> None, in place
+    advance3d: Callable  # (model, state, control, contacts, n_steps, h) -> None, in place
     advance2d: Callable
 
-    def advance(self, model, state, n_steps: int, h: float) -> None:
+    def advance(self, model, state, control, contacts, n_steps: int, h: float) -> None:
+        """n_steps fused steps of size h, in place (one compiled call). ``control``: a
+        model.Control held constant over the n steps, or None; ``contacts``: None (the contact
+        model's slot)."""
+        if contacts is not None and not self.contact:
+            raise ValueError(f"integrator {self.name!r} cannot run with contact")
         fn = self.advance3d if model.dimension == 3 else self.advance2d
-        fn(model, state, int(n_steps), float(h))
+        fn(model, state, control, contacts, int(n_steps), float(h))
+
+    def step(self, model, state_in, state_out, control, contacts, h: float) -> None:
+        """One step from state_in into state_out (state_in unchanged unless it is state_out)."""
+        if state_out is not state_in:
+            for dst, src in zip(state_out.arrays(), state_in.arrays(), strict=True):
+                dst[...] = src
+        self.advance(model, state_out, control, contacts, 1, h)
 
     def describe(self) -> dict:
         return {"integrator": self.name, "order": self.order, "symplectic": self.symplectic,
@@ -61,10 +73,10 @@ class Integrator:
 
 
 def _kernel(fn) -> Callable:
-    """Wrap a compiled advance kernel as (model, state, n_steps, h)."""
+    """Wrap a compiled advance kernel as (model, state, control, contacts, n_steps, h)."""
 
-    def advance(model, state, n_steps: int, h: float) -> None:
-        fn(*model.kernel_args(), *state.arrays(), n_steps, h)
+    def advance(model, state, control, contacts, n_steps: int, h: float) -> None:
+        fn(*model.kernel_args(), control, contacts, *state.arrays(), n_steps, h)
 
     advance.__name__ = getattr(fn, "__name__", "advance")
     advance.kernel = fn
