@@ -232,7 +232,7 @@ for label, model in (("gravity only", base), ("gravity + inert springs, drag, lo
           and str(k[3]) == str(numba.typeof(model.drag))][0]
     out[label] = {"ir_lines": ir.count("\n"),
                   "mentions": {w: (w in ir) for w in ("apply_springs", "apply_loads", "Springs",
-                                                        "Drag", "Loads")}}
+                                                        "Drag", "Loads", "Control")}}
 print(json.dumps(out))
 """
 

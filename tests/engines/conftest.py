@@ -1,16 +1,14 @@
 """Shared machinery of the engine tests.
 
-* Every adapter in ``crosscheck.engines.REGISTRY`` takes part. An adapter whose module does not
-  exist yet is skipped with that reason, so PyBullet, Pymunk and the in-house engine join the
-  conformance suite the moment their module lands. An adapter that exists but fails to import
-  is a failure, not a skip.
+* Every adapter in ``crosscheck.engines.REGISTRY`` takes part. An adapter whose module is missing
+  or fails to import is a failure, not a skip.
 * Tests ask for ``engine_name`` (one per adapter) or ``engine_name, integrator`` (one per adapter
-  and each integrator it declares), optionally restricted with ``@pytest.mark.dimension(d)`` to
-  adapters that support d-dimensional scenes; ``engine`` is the adapter instance.
-* ``SCHEMES`` says which discrete scheme each integrator is, which is what the suite's tolerances
-  are derived from. An adapter may declare its own as a class attribute
-  ``integrator_schemes = {"name": (order, "velocity_first" | "position_first" | "exact")}``; an
-  integrator known to neither is skipped with a reason naming what to add.
+  and each rigid-body integrator ``crosscheck.names`` lists for it: fluid schemes are not
+  offered), optionally restricted with ``@pytest.mark.dimension(d)`` to adapters that support
+  d-dimensional scenes; ``engine`` is the adapter instance.
+* ``crosscheck.names`` says which discrete scheme each integrator is (order and update under
+  constant acceleration), which is what the suite's tolerances are derived from; an integrator
+  without an entry fails.
 * ``harness`` (a fixture, so test modules never import this file) bundles ``run`` (run a scene,
   skipping with the adapter's reason when it is not applicable), ``scheme`` (the scheme of an
   integrator applicable to a scene, or a skip) and ``reference``: ``newton_euler``, an
@@ -20,20 +18,19 @@
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
 
-from crosscheck.engines import REGISTRY, engine_names, get_engine
+from crosscheck import names
+from crosscheck.engines import engine_names, get_engine
 from crosscheck.rotations import quat_mul, quat_normalize, quat_to_matrix
 from crosscheck.scene.model import Scene
 
-VELOCITY_FIRST = "velocity_first"  # v += h a, then x += h v_new (semi-implicit Euler family)
-POSITION_FIRST = "position_first"  # x += h v, then v += h a (explicit Euler, Pymunk)
-EXACT = "exact"  # second order or higher: exact for constant acceleration
+VELOCITY_FIRST = names.VELOCITY_FIRST  # v += h a, then x += h v_new (semi-implicit Euler family)
+POSITION_FIRST = names.POSITION_FIRST  # x += h v, then v += h a (explicit Euler, Pymunk)
+EXACT = names.EXACT  # second order or higher: exact for constant acceleration
 
 
 @dataclass(frozen=True)
@@ -42,49 +39,17 @@ class Scheme:
     fall: str  # the discrete form of its update under constant acceleration
 
 
-# engine.integrator -> scheme; "engine.*" covers every integrator of an engine.
-SCHEMES: dict[str, Scheme] = {
-    # MuJoCo: every single-step integrator updates the velocity first and then the position with
-    # the new velocity (computation docs, eq_semimplicit / eq_implicit_update / eq_discrete_update);
-    # RK4 is the classic fourth-order method.
-    "mujoco.euler": Scheme(1, VELOCITY_FIRST),
-    "mujoco.implicit": Scheme(1, VELOCITY_FIRST),
-    "mujoco.implicitfast": Scheme(1, VELOCITY_FIRST),
-    "mujoco.discrete": Scheme(1, VELOCITY_FIRST),
-    "mujoco.rk4": Scheme(4, EXACT),
-    # PyBullet: semi-implicit for both multibody and maximal-coordinate bodies (ENGINES.md).
-    "pybullet.multibody": Scheme(1, VELOCITY_FIRST),
-    "pybullet.maximal": Scheme(1, VELOCITY_FIRST),
-    # Pymunk has one update, position first (ENGINES.md: 4.900095 m in 1 s at dt = 1e-3).
-    "pymunk.*": Scheme(1, POSITION_FIRST),
-    # In-house integrators named in the cases.
-    "inhouse.rk4": Scheme(4, EXACT),
-    "inhouse.symplectic_euler": Scheme(1, VELOCITY_FIRST),
-    "inhouse.implicit_euler": Scheme(1, VELOCITY_FIRST),
-    "inhouse.explicit_euler": Scheme(1, POSITION_FIRST),
-    "inhouse.midpoint": Scheme(2, EXACT),
-    "inhouse.verlet": Scheme(2, EXACT),
-}
-
-
-def scheme_of(engine, integrator: str) -> Scheme | None:
-    declared = getattr(engine, "integrator_schemes", None) or {}
-    if integrator in declared:
-        order, fall = declared[integrator]
-        return Scheme(int(order), fall)
-    name = engine.name
-    return SCHEMES.get(f"{name}.{integrator}") or SCHEMES.get(f"{name}.*")
+def scheme_of(engine, integrator: str) -> Scheme:
+    """The integrator's scheme from crosscheck.names; a KeyError (a failure) when it has none."""
+    name = engine if isinstance(engine, str) else engine.name
+    info = names.integrator_info(name, integrator)
+    return Scheme(info.order, info.scheme)
 
 
 # -- parametrisation over adapters -----------------------------------------------------------
 def _adapter_status(name: str) -> tuple[object | None, str | None]:
-    """(engine, None) if importable; (None, skip reason) if its module does not exist yet.
-
-    Any other import error propagates: a broken adapter must fail its tests, not skip them.
-    """
-    module = REGISTRY[name][0]
-    if importlib.util.find_spec(module) is None:
-        return None, f"adapter module {module} does not exist yet"
+    """(engine, None); any import error propagates (a missing or broken adapter fails its tests,
+    it is never skipped)."""
     return get_engine(name), None
 
 
@@ -120,7 +85,7 @@ def pytest_generate_tests(metafunc):
             continue
         if with_integrator:
             params += [pytest.param(name, integ, id=f"{name}-{integ}")
-                       for integ in caps.integrators]
+                       for integ in names.rigid_names(name)]
         else:
             params.append(pytest.param(name, id=name))
     argnames = ("engine_name", "integrator") if with_integrator else ("engine_name",)
@@ -149,14 +114,13 @@ def run_scene(engine, scene: Scene, integrator: str, dt: float | None = None):
 
 
 def require_scheme(engine, scene: Scene, integrator: str) -> Scheme:
-    """The integrator's scheme, once it is known to apply to the scene; else a skip."""
+    """The integrator's scheme (crosscheck.names), once it is known to apply to the scene."""
     require_applicable(engine, scene, integrator)
-    found = scheme_of(engine, integrator)
-    if found is None:
-        pytest.skip(f"no discrete scheme known for {engine.name}.{integrator}: declare "
-                    "integrator_schemes on the adapter or add it to SCHEMES in "
-                    "tests/engines/conftest.py")
-    return found
+    try:
+        return scheme_of(engine, integrator)
+    except KeyError as exc:
+        pytest.fail(f"no discrete scheme for {engine.name}.{integrator}: add it to "
+                    f"crosscheck.names ({exc})")
 
 
 def with_run(scene: Scene, **changes) -> Scene:

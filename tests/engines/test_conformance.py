@@ -317,14 +317,7 @@ def test_tennis_racket_fourth_order_tracks_reference(engine, engine_name, integr
 
 
 def test_tennis_racket_mujoco_rk4_agrees_with_inhouse_rk4(harness):
-    engines = {}
-    for name in ("mujoco", "inhouse"):
-        try:
-            engines[name] = get_engine(name)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"crosscheck.engines.{name}":
-                raise
-            pytest.skip(f"crosscheck.engines.{name} does not exist yet")
+    engines = {name: get_engine(name) for name in ("mujoco", "inhouse")}
     scene = _tennis_racket()
     trajs = {name: harness.run(e, scene, "rk4") for name, e in engines.items()}
     a, b = trajs["mujoco"], trajs["inhouse"]

@@ -1,8 +1,8 @@
-"""crosscheck.engines.names is the one light-weight list of integrator names the loader and the
-runner check cases and ``--integrators`` against. The adapters stay the source of truth for what
-they run: these tests fail when the list and an adapter (or the in-house rigid and fluid
-registries) disagree, so an integrator added in one place and forgotten in the other is caught
-here rather than by a case being refused (or a misspelt one slipping through)."""
+"""crosscheck.names is the one light-weight table of every engine's integrators (names, order,
+scheme, symplecticity, contact) that the loader, the runner, the adapters, the in-house registry
+and the conformance suite read. These tests fail when an adapter, the in-house rigid registry or
+the fluid solver disagrees with it, so nothing can be added in one place and forgotten in
+another."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from crosscheck import names
 from crosscheck.engines import REGISTRY, get_engine
-from crosscheck.engines.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
+from crosscheck.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.scene.model import ENGINE_NAMES
 
 REPO = Path(__file__).resolve().parents[2]
@@ -39,13 +40,43 @@ def test_the_adapters_module_tuples_agree():
     assert pymunk.INTEGRATORS == INTEGRATOR_NAMES["pymunk"]
 
 
+def test_every_entry_is_well_formed():
+    for engine, infos in names.RIGID.items():
+        assert infos, engine
+        for info in infos:
+            assert info.scheme in names.SCHEMES, (engine, info)
+            assert info.order >= 1 and isinstance(info.symplectic, bool), (engine, info)
+            assert info.contact is False, (engine, info)  # no adapter runs contact yet
+            # second order and above is exact under constant acceleration, first order is not
+            assert (info.scheme == names.EXACT) == (info.order >= 2), (engine, info)
+        assert not set(names.rigid_names(engine)) & set(names.fluid_names(engine))
+
+
+def test_the_old_location_reexports_the_table():
+    from crosscheck.engines import names as old
+
+    assert old.INTEGRATOR_NAMES is INTEGRATOR_NAMES
+
+
+def test_names_imports_nothing_heavy():
+    code = ("import sys\nimport crosscheck.names\n"
+            "print(sorted(m for m in sys.modules if m.startswith('crosscheck.') "
+            "or m.split('.')[0] in ('numba', 'numpy', 'mujoco', 'pybullet', 'pymunk')))\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "['crosscheck.names']"
+
+
 def test_inhouse_is_the_rigid_registry_then_the_fluid_schemes():
     # The in-house adapter lists the fluid schemes only when crosscheck.sim.fluid imports, so the
     # adapter test above alone would not catch a fluid scheme missing from the list.
     from crosscheck.sim import fluid, rigid
 
     rigid_names = tuple(rigid.INTEGRATORS)
-    fluid_names = tuple(n for n in fluid.INTEGRATORS if n not in rigid.INTEGRATORS)
+    fluid_names = tuple(fluid.INTEGRATORS)
+    assert rigid_names == names.rigid_names("inhouse")
+    assert fluid_names == names.fluid_names("inhouse")
     assert INTEGRATOR_NAMES["inhouse"] == rigid_names + fluid_names
     assert rigid_names[0] == rigid.DEFAULT
 

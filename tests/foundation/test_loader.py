@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 from toml_writer import to_toml  # tests/foundation/toml_writer.py
 
-from crosscheck.engines.names import INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.errors import CaseError
+from crosscheck.names import INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.scene import massprops
 from crosscheck.scene.loader import find_cases, is_case_file, load_case, load_case_text
 from crosscheck.scene.model import ENGINE_NAMES, Scene, Tolerance
@@ -453,7 +453,7 @@ def test_tolerance_precedence_engine_integrator_then_integrator_then_engine_then
 # -- integrator names -----------------------------------------------------------------------------
 # A misspelt integrator used to load and then run as a "not applicable" cell: a regression gate
 # passed without the check it was asked for. Names are now checked at load against
-# crosscheck.engines.names.INTEGRATOR_NAMES (kept equal to the adapters' by
+# crosscheck.names.INTEGRATOR_NAMES (kept equal to the adapters' by
 # test_integrator_names.py); whether a known name applies to the scene stays a run-time verdict.
 @pytest.mark.parametrize("engine", ENGINE_NAMES)
 def test_a_misspelt_integrator_is_refused_under_every_engine(engine):

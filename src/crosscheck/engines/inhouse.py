@@ -23,6 +23,7 @@ import numpy as np
 
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
+from crosscheck.names import fluid_names, rigid_names
 from crosscheck.scene.model import Scene
 from crosscheck.sim.rigid import INTEGRATORS
 from crosscheck.sim.rigid.model import RigidState, state_from_scene
@@ -31,21 +32,6 @@ from crosscheck.sim.rigid.simulation import RigidSimulation
 SHAPES = frozenset({"sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon"})
 RIGID_EFFECTS = frozenset({"gravity", "springs", "drag", "loads"})
 OPTIONS = {"runaway_factor": float}  # [engine_options.inhouse] keys a case may pin
-
-# The discrete update each integrator applies under constant acceleration and its order, for the
-# engine conformance suite (tests/engines/conftest.py): "velocity_first" v += h a then x += h v,
-# "position_first" x += h v then v += h a, "exact" second order or above.
-INTEGRATOR_SCHEMES = {
-    "rk4": (4, "exact"),
-    "rk4_exp": (4, "exact"),
-    "explicit_euler": (1, "position_first"),
-    "midpoint": (2, "exact"),
-    "symplectic_euler": (1, "velocity_first"),
-    "symplectic_euler_exp": (1, "velocity_first"),
-    "verlet": (2, "exact"),
-    "implicit_euler": (1, "velocity_first"),
-}
-
 
 def _fluid_module():
     """(module, None) or (None, reason) for the in-house fluid solver."""
@@ -59,19 +45,18 @@ def _fluid_module():
 
 
 def _fluid_integrators() -> tuple[str, ...]:
+    """crosscheck.names' fluid schemes when the fluid solver imports (tests keep them equal to
+    crosscheck.sim.fluid.INTEGRATORS), else none."""
     module, _ = _fluid_module()
-    if module is None:
-        return ()
-    return tuple(getattr(module, "INTEGRATORS", ()) or ())
+    return () if module is None else fluid_names("inhouse")
 
 
 class InhouseEngine(EngineBase):
     name = "inhouse"
-    integrator_schemes = INTEGRATOR_SCHEMES
 
     def capabilities(self) -> Capabilities:
-        rigid = tuple(INTEGRATORS)  # rk4 first: the default
-        fluid = tuple(n for n in _fluid_integrators() if n not in INTEGRATORS)
+        rigid = rigid_names("inhouse")  # rk4 first: the default
+        fluid = _fluid_integrators()
         notes = {name: integ.note for name, integ in INTEGRATORS.items()}
         notes.update({name: "fluid scenes only (crosscheck.sim.fluid)" for name in fluid})
         effects = set(RIGID_EFFECTS)
@@ -92,16 +77,16 @@ class InhouseEngine(EngineBase):
             module, reason = _fluid_module()
             if module is None:
                 return reason
-            names = tuple(getattr(module, "INTEGRATORS", ()) or ())
-            if names and integrator not in names:
+            names = fluid_names("inhouse")
+            if integrator not in names:
                 return (f"{integrator!r} is not a fluid integrator "
                         f"(fluid integrators: {list(names)})")
             return None
-        if scene.effects.contact:
-            return "the in-house rigid simulator has no contact yet"
         if integrator not in INTEGRATORS:
             return (f"inhouse has no rigid-body integrator {integrator!r} "
                     f"(it has {list(INTEGRATORS)})")
+        if scene.effects.contact and not INTEGRATORS[integrator].contact:
+            return "the in-house rigid simulator has no contact yet"
         return super().not_applicable(scene, integrator)
 
     def check_options(self, scene: Scene) -> None:

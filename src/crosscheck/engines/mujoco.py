@@ -55,6 +55,7 @@ import numpy as np
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
+from crosscheck.names import rigid_names
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.model import Scene
 
@@ -63,8 +64,8 @@ try:  # the registry imports this module lazily; a missing mujoco is "not applic
 except ImportError:  # pragma: no cover - mujoco is a declared dependency
     mujoco = None
 
-# Integrator names, MuJoCo's default (Euler) first.
-INTEGRATORS: tuple[str, ...] = ("euler", "rk4", "implicit", "implicitfast", "discrete")
+# Integrator names, MuJoCo's default (Euler) first (crosscheck.names holds them).
+INTEGRATORS: tuple[str, ...] = rigid_names("mujoco")
 _MJ_INTEGRATOR = {"euler": "mjINT_EULER", "rk4": "mjINT_RK4", "implicit": "mjINT_IMPLICIT",
                   "implicitfast": "mjINT_IMPLICITFAST", "discrete": "mjINT_DISCRETE"}
 

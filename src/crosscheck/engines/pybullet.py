@@ -67,6 +67,7 @@ import numpy as np
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
+from crosscheck.names import rigid_names
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.model import Scene
 
@@ -75,7 +76,7 @@ try:  # a missing or broken pybullet makes this engine "not applicable", not an 
 except Exception:  # pragma: no cover
     _p = None
 
-INTEGRATORS: tuple[str, ...] = ("multibody", "maximal")
+INTEGRATORS: tuple[str, ...] = rigid_names("pybullet")  # crosscheck.names holds them
 
 INTEGRATOR_NOTES = {
     "multibody": "btMultiBody (Featherstone), semi-implicit Euler: v += h a(x_n, v_n), then "
@@ -818,9 +819,6 @@ class PybulletEngine(EngineBase):
 
     def check_options(self, scene: Scene) -> None:
         engine_options(scene)  # raises CaseError on an unknown key
-
-    # (global order, update under constant acceleration), read by the conformance suite.
-    integrator_schemes = {"multibody": (1, "velocity_first"), "maximal": (1, "velocity_first")}
 
     def capabilities(self) -> Capabilities:
         return Capabilities(

@@ -55,6 +55,7 @@ import numpy as np
 
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.errors import CaseError
+from crosscheck.names import rigid_names
 from crosscheck.scene.model import Scene
 
 try:  # a missing or broken pymunk makes this engine "not applicable", not an import error
@@ -68,7 +69,7 @@ try:  # Chipmunk's C functions, as pymunk itself calls them (see PymunkModel.rea
 except Exception:  # pragma: no cover
     _ffi = _cp = None
 
-INTEGRATORS: tuple[str, ...] = ("position_first",)
+INTEGRATORS: tuple[str, ...] = rigid_names("pymunk")  # crosscheck.names holds them
 
 INTEGRATOR_NOTES = {
     "position_first": "Chipmunk's step: x += h v_n and theta += h w_n first, then "
@@ -376,9 +377,6 @@ class PymunkEngine(EngineBase):
 
     def check_options(self, scene: Scene) -> None:
         engine_options(scene)  # raises CaseError on an unknown key
-
-    # (global order, update under constant acceleration), read by the conformance suite.
-    integrator_schemes = {"position_first": (1, "position_first")}
 
     def capabilities(self) -> Capabilities:
         return Capabilities(

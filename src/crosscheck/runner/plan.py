@@ -79,7 +79,7 @@ def check_integrators(requested: list[str] | None, engine_refs: dict[str, str] |
     development) bring their own names, so theirs are not checked, nor are plain names then.
     """
     from crosscheck.engines import engine_names
-    from crosscheck.engines.names import INTEGRATOR_NAMES, all_integrator_names
+    from crosscheck.names import INTEGRATOR_NAMES, all_integrator_names
 
     refs = set(engine_refs or {})
     known_engines = sorted(set(engine_names()) | refs)

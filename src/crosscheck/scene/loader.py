@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from crosscheck.engines.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.errors import CaseError
+from crosscheck.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.rotations import axis_angle_to_quat
 from crosscheck.scene import massprops
 from crosscheck.scene.fields import Fields, check_number, check_vector, one_of
@@ -51,7 +51,7 @@ QUATERNION_UNIT_TOLERANCE = 1e-6  # |q| may differ from 1 by this much (then it 
 def load_case(path: str | Path, *, unchecked_engines: Collection[str] = ()) -> Scene:
     """Read and validate one case file.
 
-    Integrator names are checked against :data:`crosscheck.engines.names.INTEGRATOR_NAMES`,
+    Integrator names are checked against :data:`crosscheck.names.INTEGRATOR_NAMES`,
     except those of ``unchecked_engines``: engines an adapter under development stands in for
     (``--engine-ref``), which brings integrator names of its own; a name it does not know is then
     "not applicable" when the case runs.

@@ -6,6 +6,9 @@ Public API:
   (-> :class:`RigidState`), :class:`RigidSimulation` (model + integrator: ``advance``,
   ``observe``, ``derivative``); the engine adapter (engines/inhouse.py) opens a session on it
   and the run driver (engines/driver.py) records and times it.
+* :func:`step` (model, state_in, state_out, control, contacts, h) and :func:`advance` (model,
+  state, control, contacts, n_steps, h), the fused n-step loop; :class:`Control` holds per-body
+  external wrenches (None when there are none), ``contacts`` is the contact model's slot (None).
 * :data:`INTEGRATORS` / :func:`get_integrator`: the registry (name, order, symplectic, rotation).
 * The generic ODE interface used by the DOP853 reference: :func:`initial_state` (flat y0),
   :func:`state_derivative` (f(t, y)) and :func:`state_to_trajectory`, all on the same kernels.
@@ -19,17 +22,18 @@ import numpy as np
 
 from crosscheck.sim.rigid.integrators import DEFAULT, INTEGRATORS, Integrator, get_integrator
 from crosscheck.sim.rigid.model import (
+    Control,
     RigidModel,
     RigidState,
     compile_model,
     state_from_scene,
 )
-from crosscheck.sim.rigid.simulation import RigidSimulation
+from crosscheck.sim.rigid.simulation import RigidSimulation, advance, step
 
 __all__ = [
-    "DEFAULT", "INTEGRATORS", "Integrator", "RigidModel", "RigidSimulation", "RigidState",
-    "compile_model", "get_integrator", "initial_state",
-    "state_derivative", "state_from_scene", "state_to_trajectory",
+    "DEFAULT", "INTEGRATORS", "Control", "Integrator", "RigidModel", "RigidSimulation",
+    "RigidState", "advance", "compile_model", "get_integrator", "initial_state",
+    "state_derivative", "state_from_scene", "state_to_trajectory", "step",
 ]
 
 

@@ -76,8 +76,8 @@ def _coupled_steps(n_steps, n_unknowns, nnz_max, assemble, assemble_args, finish
         finish(*finish_args, _solve(*coo, nnz))
 
 
-def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
-    args = (*model.kernel_args(), *state.arrays())
+def advance_implicit_3d(model, state, control, contacts, n_steps: int, h: float) -> None:
+    args = (*model.kernel_args(), control, contacts, *state.arrays())
     if model.springs is None:
         k3.advance_local_3d(*args, n_steps, h)
         return
@@ -90,8 +90,8 @@ def advance_implicit_3d(model, state, n_steps: int, h: float) -> None:
                    k3.finish_3d, (model.bodies, x, q, P, L, Iw, np.empty((5, 3, 3)), h))
 
 
-def advance_implicit_2d(model, state, n_steps: int, h: float) -> None:
-    args = (*model.kernel_args(), *state.arrays())
+def advance_implicit_2d(model, state, control, contacts, n_steps: int, h: float) -> None:
+    args = (*model.kernel_args(), control, contacts, *state.arrays())
     if model.springs is None:
         k2.advance_local_2d(*args, n_steps, h)
         return

@@ -4,7 +4,8 @@ State (x (N, 2), angle (N,), P (N, 2), L (N,)); dx/dt = P/m, dangle/dt = L/I, dP
 dL/dt = tau with tau = r x f = r_x f_y - r_y f_x. The angle is a coordinate of a vector space,
 so every rotation update here is exact bookkeeping (no normalisation, and the exponential map of
 SO(2) is the addition of angles): the 2D variants of ``rk4_exp`` and ``symplectic_euler_exp`` are
-the same kernels as ``rk4`` and ``symplectic_euler``. Effects are composed as in kernels3d.
+the same kernels as ``rk4`` and ``symplectic_euler``. Effects, ``control`` and the ``contacts``
+slot are composed as in kernels3d.
 """
 
 from __future__ import annotations
@@ -103,7 +104,15 @@ def apply_loads(loads, F, T):
 
 
 @njit(**JIT)
-def accumulate(bodies, gravity, springs, drag, loads, x, angle, v, w, F, T):
+def apply_control(control, F, T):
+    for i in range(F.shape[0]):
+        F[i, 0] += control.force[i, 0]
+        F[i, 1] += control.force[i, 1]
+        T[i] += control.torque[i]
+
+
+@njit(**JIT)
+def accumulate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, v, w, F, T):
     F[:] = 0.0
     T[:] = 0.0
     if gravity is not None:
@@ -114,17 +123,21 @@ def accumulate(bodies, gravity, springs, drag, loads, x, angle, v, w, F, T):
         apply_drag(drag, v, w, F, T)
     if loads is not None:
         apply_loads(loads, F, T)
+    if control is not None:  # external wrenches (model.Control), after the scene's effects
+        apply_control(control, F, T)
 
 
 @njit(**JIT)
-def evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T):
+def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, P, L, v, w, F, T):
     kinematics(bodies, P, L, v, w)
-    accumulate(bodies, gravity, springs, drag, loads, x, angle, v, w, F, T)
+    accumulate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, v, w, F, T)
 
 
 @njit(**JIT)
-def derivative(bodies, gravity, springs, drag, loads, x, angle, P, L, dx, dangle, dP, dL):
-    evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, dx, dangle, dP, dL)
+def derivative(bodies, gravity, springs, drag, loads, control, contacts,
+               x, angle, P, L, dx, dangle, dP, dL):
+    evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+             x, angle, P, L, dx, dangle, dP, dL)
 
 
 @njit(**JIT)
@@ -196,32 +209,38 @@ def kick_drift(bodies, i, h, x, angle, P, L, F, T):
 
 # -- explicit Runge-Kutta family -------------------------------------------------------------------
 @njit(**JIT)
-def advance_explicit_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_explicit_euler(bodies, gravity, springs, drag, loads, control, contacts,
+                           x, angle, P, L, n_steps, h):
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):  # y += h f(y)
             axpy_state(i, h, x, angle, P, L, x, angle, P, L, v, w, F, T)
 
 
 @njit(**JIT)
-def advance_midpoint(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_midpoint(bodies, gravity, springs, drag, loads, control, contacts,
+                     x, angle, P, L, n_steps, h):
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
     xs, As, Ps, Ls = state_scratch(n)
     hh = 0.5 * h
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):  # ys = y + h/2 f(y)
             axpy_state(i, hh, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
-        evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 xs, As, Ps, Ls, v, w, F, T)
         for i in range(n):  # y += h f(ys)
             axpy_state(i, h, x, angle, P, L, x, angle, P, L, v, w, F, T)
 
 
 @njit(**JIT)
-def advance_rk4(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_rk4(bodies, gravity, springs, drag, loads, control, contacts,
+                x, angle, P, L, n_steps, h):
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
     xs, As, Ps, Ls = state_scratch(n)  # the stage state
@@ -230,36 +249,42 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, 
     h6 = h / 6.0
     for _ in range(n_steps):
         # k1 at y: a = k1; ys = y + h/2 k1
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):
             copy_state(i, ax, aA, aP, aL, v, w, F, T)
             axpy_state(i, hh, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
         # k2 at y + h/2 k1, k3 at y + h/2 k2: a += 2 k; the next stage from y
         for stage in range(2):
-            evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+            evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                     xs, As, Ps, Ls, v, w, F, T)
             step = hh if stage == 0 else h
             for i in range(n):
                 axpy_state(i, 2.0, ax, aA, aP, aL, ax, aA, aP, aL, v, w, F, T)
                 axpy_state(i, step, xs, As, Ps, Ls, x, angle, P, L, v, w, F, T)
         # k4 at y + h k3; the step y += h/6 (a + k4)
-        evaluate(bodies, gravity, springs, drag, loads, xs, As, Ps, Ls, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 xs, As, Ps, Ls, v, w, F, T)
         for i in range(n):
             axpy_sum_state(i, h6, x, angle, P, L, ax, aA, aP, aL, v, w, F, T)
 
 
 # -- symplectic family: kick, then drift with the new momenta ----------------------------------
 @njit(**JIT)
-def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_symplectic_euler(bodies, gravity, springs, drag, loads, control, contacts,
+                             x, angle, P, L, n_steps, h):
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):
             kick_drift(bodies, i, h, x, angle, P, L, F, T)
 
 
 @njit(**JIT)
-def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_verlet(bodies, gravity, springs, drag, loads, control, contacts,
+                   x, angle, P, L, n_steps, h):
     """Velocity Verlet; velocity-dependent forces of the closing half kick use 2 P_half - P_n."""
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
@@ -267,7 +292,8 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_step
     Lp = np.empty(n)
     hh = 0.5 * h
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):  # half kick and drift; 2 P_half - P_n for the closing half kick
             for c in range(2):
                 p_old = P[i, c]
@@ -278,7 +304,8 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, angle, P, L, n_step
             L[i] += hh * T[i]
             Lp[i] = 2.0 * L[i] - l_old
             angle[i] += h * L[i] * bodies.inv_moment[i]
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, Pp, Lp, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, Pp, Lp, v, w, F, T)
         for i in range(n):
             kick(i, hh, P, L, F, T)
 
@@ -347,10 +374,10 @@ def spring_jacobian_2d(springs, s, x, angle, v, w, Ks, Ds):
 
 
 @njit(**JIT)
-def assemble_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, h,
+def assemble_2d(bodies, gravity, springs, drag, loads, control, contacts, x, angle, P, L, h,
                 v, w, F, T, rows, cols, vals, rhs):
     n = x.shape[0]
-    evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+    evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, P, L, v, w, F, T)
     nnz = 0
     for i in range(n):
         cl, ca = drag_coefficients(drag, i)
@@ -409,12 +436,14 @@ def finish_2d(bodies, x, angle, P, L, w, h, du):
 
 
 @njit(**JIT)
-def advance_local_2d(bodies, gravity, springs, drag, loads, x, angle, P, L, n_steps, h):
+def advance_local_2d(bodies, gravity, springs, drag, loads, control, contacts,
+                     x, angle, P, L, n_steps, h):
     n = x.shape[0]
     v, w, F, T = state_scratch(n)
     du = np.empty(3 * n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, angle, P, L, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, angle, P, L, v, w, F, T)
         for i in range(n):
             cl, ca = drag_coefficients(drag, i)
             du[3 * i] = h * F[i, 0] / (bodies.mass[i] + h * cl)

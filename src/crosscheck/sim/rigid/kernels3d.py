@@ -1,9 +1,11 @@
 """3D kernels: the one implementation of the in-house rigid-body physics (numba, cached).
 
-Every kernel takes the model's ``(bodies, gravity, springs, drag, loads)`` first (see model.py);
-an effect the scene does not declare is ``None`` and its ``if ... is not None`` branch is removed
-when numba compiles the specialisation for that scene, so the compiled step is composed of the
-declared effects' kernels alone. The state is (x, q, P, L) as in Baraff's notes:
+Every kernel takes the model's ``(bodies, gravity, springs, drag, loads)`` first (see model.py),
+then ``control`` (a model.Control of per-body external wrenches, or None) and ``contacts`` (the
+contact model's slot: None, read by no code yet); an effect the scene does not declare is
+``None`` and its ``if ... is not None`` branch is removed when numba compiles the
+specialisation for that scene, so the compiled step is composed of the declared effects' kernels
+alone. The state is (x, q, P, L) as in Baraff's notes:
 
     dx/dt = P / m,   dq/dt = 1/2 (0, w) q,   dP/dt = F,   dL/dt = tau,
     w = R I_body^-1 R^T L,   R = R(q).
@@ -146,6 +148,14 @@ def drag_wrench(drag, i, vx, vy, vz, wx, wy, wz):
 
 
 @njit(**INLINE)
+def control_wrench(control, i):
+    """Body i's external wrench of the Control (force at the centre of mass, torque; world)."""
+    f = control.force
+    t = control.torque
+    return f[i, 0], f[i, 1], f[i, 2], t[i, 0], t[i, 1], t[i, 2]
+
+
+@njit(**INLINE)
 def spring_point(x, R, v, w, body, r, s):
     """World offset, position and velocity of the body-frame point r[s] (relative to the com)."""
     r0, r1, r2 = r[s, 0], r[s, 1], r[s, 2]
@@ -225,13 +235,14 @@ def apply_loads(loads, F, T):
 
 
 @njit(**JIT)
-def evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T):
+def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, R, v, w, F, T):
     """Kinematics and the net force and torque of the declared effects at (x, q, P, L).
 
-    One pass over the bodies computes R, v, w and the per-body effects; springs and loads
-    scatter afterwards. Every ``is not None`` test is resolved when numba compiles the
-    specialisation for the scene's effects: an undeclared effect leaves no code in the step
-    (R is only stored when springs need it).
+    One pass over the bodies computes R, v, w and the per-body effects (gravity, drag, the
+    control's external wrench); springs and loads scatter afterwards. Every ``is not None`` test
+    is resolved when numba compiles the specialisation for the scene's effects: an undeclared
+    effect, or ``control=None``, leaves no code in the step (R is only stored when springs need
+    it). ``contacts`` is the contact model's slot, always None today: no code reads it.
     """
     for i in range(q.shape[0]):
         (r00, r01, r02, r10, r11, r12, r20, r21, r22, vx, vy, vz, wx, wy,
@@ -256,6 +267,14 @@ def evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T):
             tx += dtx
             ty += dty
             tz += dtz
+        if control is not None:
+            cfx, cfy, cfz, ctx, cty, ctz = control_wrench(control, i)
+            fx += cfx
+            fy += cfy
+            fz += cfz
+            tx += ctx
+            ty += cty
+            tz += ctz
         F[i, 0], F[i, 1], F[i, 2] = fx, fy, fz
         T[i, 0], T[i, 1], T[i, 2] = tx, ty, tz
     if springs is not None:
@@ -279,12 +298,13 @@ def quat_rate(q, w, dq):
 
 
 @njit(**JIT)
-def derivative(bodies, gravity, springs, drag, loads, x, q, P, L, dx, dq, dP, dL):
+def derivative(bodies, gravity, springs, drag, loads, control, contacts,
+               x, q, P, L, dx, dq, dP, dL):
     """The generic state derivative (dx, dq, dP, dL) = (v, 1/2 w q, F, tau) (solve_ivp etc.)."""
     n = x.shape[0]
     R = np.empty((n, 3, 3))
     w = np.empty((n, 3))
-    evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, dx, w, dP, dL)
+    evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, R, dx, w, dP, dL)
     quat_rate(q, w, dq)
 
 
@@ -363,11 +383,13 @@ def row4(a, i):
 
 # -- explicit Runge-Kutta family (additive quaternion update, renormalised after the step) -------
 @njit(**JIT)
-def advance_explicit_euler(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_explicit_euler(bodies, gravity, springs, drag, loads, control, contacts,
+                           x, q, P, L, n_steps, h):
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):  # y += h f(y)
             dq = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
             axpy_state(i, h, x, q, P, L, x, q, P, L, v, dq, F, T)
@@ -375,7 +397,8 @@ def advance_explicit_euler(bodies, gravity, springs, drag, loads, x, q, P, L, n_
 
 
 @njit(**JIT)
-def advance_midpoint(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_midpoint(bodies, gravity, springs, drag, loads, control, contacts,
+                     x, q, P, L, n_steps, h):
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     # The rates in a pass of their own, not per body inside the update loops as in the other
@@ -386,11 +409,13 @@ def advance_midpoint(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
     xs, qs, Ps, Ls = state_scratch(n)
     hh = 0.5 * h
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         quat_rate(q, w, dq)
         for i in range(n):  # ys = y + h/2 f(y)
             axpy_state(i, hh, xs, qs, Ps, Ls, x, q, P, L, v, row4(dq, i), F, T)
-        evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 xs, qs, Ps, Ls, R, v, w, F, T)
         quat_rate(qs, w, dq)
         for i in range(n):  # y += h f(ys)
             axpy_state(i, h, x, q, P, L, x, q, P, L, v, row4(dq, i), F, T)
@@ -398,7 +423,7 @@ def advance_midpoint(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
 
 
 @njit(**JIT)
-def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_rk4(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, n_steps, h):
     """Classical RK4 on (x, q, P, L); q renormalised once per step (a projection, O(h^5))."""
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
@@ -408,7 +433,8 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
     h6 = h / 6.0
     for _ in range(n_steps):
         # k1 at y: a = k1; ys = y + h/2 k1
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             dq = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
             copy_xPL(i, ax, aP, aL, v, F, T)
@@ -416,14 +442,16 @@ def advance_rk4(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
             axpy_state(i, hh, xs, qs, Ps, Ls, x, q, P, L, v, dq, F, T)
         # k2 at y + h/2 k1, k3 at y + h/2 k2: a += 2 k; the next stage from y
         for stage in range(2):
-            evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
+            evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                     xs, qs, Ps, Ls, R, v, w, F, T)
             step = hh if stage == 0 else h
             for i in range(n):
                 dq = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
                 axpy_state(i, 2.0, ax, aq, aP, aL, ax, aq, aP, aL, v, dq, F, T)
                 axpy_state(i, step, xs, qs, Ps, Ls, x, q, P, L, v, dq, F, T)
         # k4 at y + h k3; the step y += h/6 (a + k4), q renormalised
-        evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 xs, qs, Ps, Ls, R, v, w, F, T)
         for i in range(n):
             dq = quat_rate_of(qs, i, w[i, 0], w[i, 1], w[i, 2])
             axpy_sum_state(i, h6, x, q, P, L, ax, aq, aP, aL, v, dq, F, T)
@@ -452,7 +480,8 @@ def _rotate_stage(q, th, i, s, ux, uy, uz, qs):
 
 
 @njit(**JIT)
-def advance_rk4_exp(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_rk4_exp(bodies, gravity, springs, drag, loads, control, contacts,
+                    x, q, P, L, n_steps, h):
     """RK4 with the Runge-Kutta-Munthe-Kaas rotation update (order 4, |q| = 1 by construction).
 
     x, P, L take the classical RK4 stages. The orientation is never updated additively: stage i
@@ -469,7 +498,8 @@ def advance_rk4_exp(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, 
     hh = 0.5 * h
     h6 = h / 6.0
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             copy_xPL(i, ax, aP, aL, v, F, T)
             axpy_xPL(i, hh, xs, Ps, Ls, x, P, L, v, F, T)
@@ -477,7 +507,8 @@ def advance_rk4_exp(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, 
                 au[i, c] = w[i, c]
             _rotate_stage(q, th, i, hh, w[i, 0], w[i, 1], w[i, 2], qs)
         for stage in range(3):
-            evaluate(bodies, gravity, springs, drag, loads, xs, qs, Ps, Ls, R, v, w, F, T)
+            evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                     xs, qs, Ps, Ls, R, v, w, F, T)
             weight = 2.0 if stage < 2 else 1.0
             step = hh if stage == 0 else h
             for i in range(n):
@@ -561,13 +592,15 @@ def drift_com(bodies, i, h, x, P):
 
 
 @njit(**JIT)
-def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_symplectic_euler(bodies, gravity, springs, drag, loads, control, contacts,
+                             x, q, P, L, n_steps, h):
     """Kick P, L by h with the forces at the start; drift x by h P/m and the orientation by the
     exact principal-axis sub-rotations (Lie-Trotter) with the new L."""
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             kick(i, h, P, L, F, T)
             drift_com(bodies, i, h, x, P)
@@ -575,7 +608,8 @@ def advance_symplectic_euler(bodies, gravity, springs, drag, loads, x, q, P, L, 
 
 
 @njit(**JIT)
-def advance_symplectic_euler_exp(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_symplectic_euler_exp(bodies, gravity, springs, drag, loads, control, contacts,
+                                 x, q, P, L, n_steps, h):
     """Kick then drift, the rotation drift as one exponential map q <- exp(h w) q with
     w = I(q_n)^-1 L_{n+1}: the semi-implicit Euler of game engines. Symplectic for the
     translation; the rotation is explicit in w(q) (|q| stays 1, but a tumbling asymmetric body's
@@ -583,7 +617,8 @@ def advance_symplectic_euler_exp(bodies, gravity, springs, drag, loads, x, q, P,
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             kick(i, h, P, L, F, T)
             drift_com(bodies, i, h, x, P)
@@ -594,7 +629,8 @@ def advance_symplectic_euler_exp(bodies, gravity, springs, drag, loads, x, q, P,
 
 
 @njit(**JIT)
-def advance_verlet(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_verlet(bodies, gravity, springs, drag, loads, control, contacts,
+                   x, q, P, L, n_steps, h):
     """Velocity Verlet: half kick, drift (x by h P/m, orientation by the Strang principal-axis
     splitting), half kick with the forces at the new configuration.
 
@@ -608,7 +644,8 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h
     Lp = np.empty((n, 3))
     hh = 0.5 * h
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             for c in range(3):  # the half kick, and 2 P_half - P_n for the closing one
                 p_old = P[i, c]
@@ -619,7 +656,8 @@ def advance_verlet(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h
                 Lp[i, c] = 2.0 * L[i, c] - l_old
             drift_com(bodies, i, h, x, P)
             free_rotation(bodies, q, L, i, h, True)
-        evaluate(bodies, gravity, springs, drag, loads, x, q, Pp, Lp, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, Pp, Lp, R, v, w, F, T)
         for i in range(n):
             kick(i, hh, P, L, F, T)
 
@@ -721,11 +759,11 @@ def spring_jacobian_3d(springs, s, x, R, v, w, Ks, Ds):
 
 
 @njit(**JIT)
-def assemble_3d(bodies, gravity, springs, drag, loads, x, q, P, L, h,
+def assemble_3d(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, h,
                 R, v, w, F, T, Iw, rows, cols, vals, rhs):
     """A = M - h D - h^2 K as COO triplets and rhs = h (f0 + h K u0); returns the entry count."""
     n = x.shape[0]
-    evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+    evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, R, v, w, F, T)
     nnz = 0
     for i in range(n):
         rotation_from_quat(q, i, R)  # evaluate stores R only for springs; needed here anyway
@@ -872,7 +910,8 @@ def finish_3d(bodies, x, q, P, L, Iw, ws, h, du):
 
 
 @njit(**JIT)
-def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps, h):
+def advance_local_3d(bodies, gravity, springs, drag, loads, control, contacts,
+                     x, q, P, L, n_steps, h):
     """Backward Euler without springs: the system is block-diagonal, solved body by body."""
     n = x.shape[0]
     R, v, w, F, T = force_scratch(n)
@@ -881,7 +920,8 @@ def advance_local_3d(bodies, gravity, springs, drag, loads, x, q, P, L, n_steps,
     du = np.empty(6 * n)
     A = np.empty((3, 3))
     for _ in range(n_steps):
-        evaluate(bodies, gravity, springs, drag, loads, x, q, P, L, R, v, w, F, T)
+        evaluate(bodies, gravity, springs, drag, loads, control, contacts,
+                 x, q, P, L, R, v, w, F, T)
         for i in range(n):
             rotation_from_quat(q, i, R)
             _world_inertia(bodies, R, i, Iw)

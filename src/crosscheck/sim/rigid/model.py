@@ -77,6 +77,26 @@ class Loads(NamedTuple):
     torque: np.ndarray  # (K, 3) in 3D, (K,) in 2D
 
 
+class Control(NamedTuple):
+    """Per-body external wrenches for the next step(s), world frame, at the centres of mass:
+    written each step by whoever drives the model (coupling, motors), read by the force pass
+    after the scene's own effects. Passed to the kernels as an argument that is ``None`` when
+    there is none, so a control-free step holds no control code (numba prunes the branch)."""
+
+    force: np.ndarray  # (N, d)
+    torque: np.ndarray  # (N, 3) in 3D, (N,) in 2D
+
+    @classmethod
+    def zeros(cls, model: RigidModel) -> Control:
+        n, d = model.n_bodies, model.dimension
+        return cls(np.zeros((n, d)), np.zeros((n, 3)) if d == 3 else np.zeros(n))
+
+
+# The contact model's slot: the kernels take a ``contacts`` argument after ``control``; it is
+# always None today (no contact code reads it) and each integrator's ``contact`` flag
+# (crosscheck.names) says whether it may be given one.
+
+
 @dataclass(frozen=True)
 class RigidModel:
     """The compiled scene: what the kernels read and never write."""

@@ -18,6 +18,26 @@ from crosscheck.sim.rigid.integrators import Integrator, get_integrator
 from crosscheck.sim.rigid.model import RigidModel, RigidState, compile_model
 
 
+def step(model: RigidModel, state_in: RigidState, state_out: RigidState, control, contacts,
+         h: float, integrator: str | Integrator = "rk4") -> None:
+    """One step of the named integrator from state_in into state_out (Newton / warp.sim style).
+
+    ``control``: a model.Control (per-body external wrenches, world frame, at the centres of mass)
+    or None; ``contacts``: the contact model's slot, None (no contact code yet)."""
+    _integrator(integrator).step(model, state_in, state_out, control, contacts, h)
+
+
+def advance(model: RigidModel, state: RigidState, control, contacts, n_steps: int, h: float,
+            integrator: str | Integrator = "rk4") -> None:
+    """n_steps fused steps in place, in one compiled call (what the engine runs between samples);
+    ``control`` is held constant over them."""
+    _integrator(integrator).advance(model, state, control, contacts, n_steps, h)
+
+
+def _integrator(integrator: str | Integrator) -> Integrator:
+    return integrator if isinstance(integrator, Integrator) else get_integrator(integrator)
+
+
 class RigidSimulation:
     """A compiled model plus one integrator; steps a RigidState in place."""
 
@@ -30,9 +50,10 @@ class RigidSimulation:
     def from_scene(cls, scene: Scene, integrator: str = "rk4") -> RigidSimulation:
         return cls(compile_model(scene), integrator)
 
-    def advance(self, state: RigidState, n_steps: int, h: float) -> None:
-        """Take n_steps steps of size h in place."""
-        self.integrator.advance(self.model, state, n_steps, h)
+    def advance(self, state: RigidState, n_steps: int, h: float, control=None,
+                contacts=None) -> None:
+        """Take n_steps steps of size h in place (control held over them; see ``advance``)."""
+        self.integrator.advance(self.model, state, control, contacts, n_steps, h)
 
     def warmup(self, state: RigidState, h: float) -> float:
         """Compile (or load from numba's cache) every kernel this run needs; returns seconds."""
@@ -59,5 +80,5 @@ class RigidSimulation:
         """The state derivative (v, dq/dt, F, tau) from the same kernels the integrators use."""
         dx, drot, dP, dL = (np.empty_like(a) for a in state.arrays())
         kern = k3 if self.model.dimension == 3 else k2
-        kern.derivative(*self.model.kernel_args(), *state.arrays(), dx, drot, dP, dL)
+        kern.derivative(*self.model.kernel_args(), None, None, *state.arrays(), dx, drot, dP, dL)
         return RigidState(dx, drot, dP, dL)

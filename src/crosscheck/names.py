@@ -1,0 +1,136 @@
+"""Every engine's integrator names and what the harness needs to know about each, in ONE place.
+
+Plain data, importing nothing of crosscheck's but the standard library: the case loader
+(scene/loader.py) and the runner check names against it without importing an adapter, numba,
+MuJoCo, PyBullet or Pymunk (slow, and a missing engine must not break loading).
+
+Per engine, ``RIGID`` lists its rigid-body integrators in the adapter's order (the first is the
+engine's default) with, for each:
+
+* ``order``: nominal global order of convergence on smooth motion;
+* ``scheme``: the discrete update under constant acceleration, which the engine conformance suite
+  derives its tolerances from: ``"velocity_first"`` (v += h a, then x += h v_new: the
+  semi-implicit Euler family), ``"position_first"`` (x += h v, then v += h a) or ``"exact"``
+  (second order or above: exact for constant acceleration);
+* ``symplectic``: symplectic for the whole rigid-body system without damping or drag (rotation
+  included: a semi-implicit Euler with an explicit gyroscopic term is not);
+* ``contact``: whether crosscheck can run it on a scene with contact. False everywhere today (no
+  adapter builds collision shapes yet); the contact issue fills it in.
+
+``FLUID`` lists the engines' grid-fluid schemes (the in-house solver's, crosscheck.sim.fluid),
+which are never offered as rigid-body integrators. ``INTEGRATOR_NAMES[engine]`` is what the
+adapter's ``capabilities().integrators`` lists: its rigid integrators, then its fluid schemes.
+
+Who reads it: the adapters (their ``INTEGRATORS`` tuples are ``rigid_names(engine)``), the
+in-house registry (sim/rigid/integrators.py binds a kernel to every in-house name and refuses a
+name not listed here; tests/rigid fail when a name has no kernel or a kernel no name), the case
+loader and runner (names), and the engine conformance suite (orders and schemes: an integrator
+without one fails, it is never skipped). Adding an in-house integrator: one entry here, its
+kernels, one ``bind`` call in sim/rigid/integrators.py.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+VELOCITY_FIRST = "velocity_first"
+POSITION_FIRST = "position_first"
+EXACT = "exact"
+SCHEMES = (VELOCITY_FIRST, POSITION_FIRST, EXACT)
+
+
+class IntegratorInfo(NamedTuple):
+    name: str
+    order: int
+    scheme: str  # VELOCITY_FIRST | POSITION_FIRST | EXACT
+    symplectic: bool
+    contact: bool = False
+
+
+def _i(name: str, order: int, scheme: str, symplectic: bool, contact: bool = False):
+    assert scheme in SCHEMES, scheme
+    return IntegratorInfo(name, order, scheme, symplectic, contact)
+
+
+RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
+    # crosscheck.sim.rigid (docs/inhouse.md, "Integrators"). 2D: every scheme is symplectic
+    # or not as in 3D except symplectic_euler_exp, which is symplectic_euler there.
+    "inhouse": (
+        _i("rk4", 4, EXACT, False),
+        _i("rk4_exp", 4, EXACT, False),
+        _i("explicit_euler", 1, POSITION_FIRST, False),
+        _i("midpoint", 2, EXACT, False),
+        _i("symplectic_euler", 1, VELOCITY_FIRST, True),
+        _i("symplectic_euler_exp", 1, VELOCITY_FIRST, False),
+        _i("verlet", 2, EXACT, True),
+        _i("implicit_euler", 1, VELOCITY_FIRST, False),
+    ),
+    # MuJoCo, its default (Euler) first: every single-step integrator updates the velocity first
+    # and then the position with the new velocity (computation docs, eq_semimplicit /
+    # eq_implicit_update / eq_discrete_update); the gyroscopic term is explicit or linearised, so
+    # none is symplectic for a tumbling body. RK4 is the classic fourth-order method.
+    "mujoco": (
+        _i("euler", 1, VELOCITY_FIRST, False),
+        _i("rk4", 4, EXACT, False),
+        _i("implicit", 1, VELOCITY_FIRST, False),
+        _i("implicitfast", 1, VELOCITY_FIRST, False),
+        _i("discrete", 1, VELOCITY_FIRST, False),
+    ),
+    # PyBullet's two kinds of body, both semi-implicit Euler (ENGINES.md); the gyroscopic term is
+    # explicit (multibody: a tumbling body gains energy) or implicit (maximal: loses).
+    "pybullet": (
+        _i("multibody", 1, VELOCITY_FIRST, False),
+        _i("maximal", 1, VELOCITY_FIRST, False),
+    ),
+    # Pymunk (Chipmunk, 2D): positions first with the old velocities, then the velocities with
+    # the forces at the new positions (ENGINES.md: 4.900095 m in 1 s at dt = 1e-3); a kick-drift
+    # pair in the other order, symplectic in the plane.
+    "pymunk": (
+        _i("position_first", 1, POSITION_FIRST, True),
+    ),
+}
+
+# Grid-fluid schemes (crosscheck.sim.fluid.INTEGRATORS, in its order): fluid scenes only.
+FLUID: dict[str, tuple[str, ...]] = {
+    "inhouse": ("semi_lagrangian", "maccormack", "particle_levelset",
+                "particle_levelset_maccormack"),
+}
+
+ENGINES: tuple[str, ...] = tuple(RIGID)
+
+# Names a fine-step reference accepts besides its engine's integrators: SciPy's DOP853 on the
+# in-house equations of motion (crosscheck.compare.reference).
+FINE_STEP_ONLY: tuple[str, ...] = ("dop853",)
+
+
+def rigid_names(engine: str) -> tuple[str, ...]:
+    """The engine's rigid-body integrators in order (the first is its default)."""
+    return tuple(i.name for i in RIGID[engine])
+
+
+def fluid_names(engine: str) -> tuple[str, ...]:
+    return FLUID.get(engine, ())
+
+
+def integrator_info(engine: str, name: str) -> IntegratorInfo:
+    """The entry of one rigid-body integrator; KeyError naming what is known otherwise."""
+    for info in RIGID[engine]:
+        if info.name == name:
+            return info
+    raise KeyError(f"{engine} has no rigid-body integrator {name!r}; known: "
+                   f"{list(rigid_names(engine))}")
+
+
+INTEGRATOR_NAMES: dict[str, tuple[str, ...]] = {
+    engine: rigid_names(engine) + fluid_names(engine) for engine in ENGINES}
+
+
+def all_integrator_names() -> tuple[str, ...]:
+    """Every name some engine knows, each once, in engine order."""
+    return tuple(dict.fromkeys(n for names in INTEGRATOR_NAMES.values() for n in names))
+
+
+for _engine, _infos in RIGID.items():  # a name is one thing per engine
+    _names = [i.name for i in _infos] + list(FLUID.get(_engine, ()))
+    assert len(set(_names)) == len(_names), (_engine, _names)
+del _engine, _infos, _names
