@@ -19,6 +19,7 @@ import numpy as np
 
 from crosscheck.errors import CaseError
 from crosscheck.scene.fields import Fields
+from crosscheck.scene.shapes import Box, Circle, Placed
 
 SIDES_2D = ("left", "right", "bottom", "top")
 WALL_KINDS = ("solid", "open")
@@ -26,32 +27,9 @@ OUTPUT_FIELDS = ("u", "v", "phi", "p")
 
 
 # -- shapes ------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Box:
-    """Axis-aligned box: centre and full side lengths (m)."""
-
-    center: tuple[float, ...]
-    size: tuple[float, ...]
-
-    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        qx = np.abs(x - self.center[0]) - 0.5 * self.size[0]
-        qy = np.abs(y - self.center[1]) - 0.5 * self.size[1]
-        outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-        inside = np.minimum(np.maximum(qx, qy), 0.0)
-        return outside + inside
-
-
-@dataclass(frozen=True)
-class Circle:
-    """Disc: centre and radius (m)."""
-
-    center: tuple[float, ...]
-    radius: float
-
-    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return np.hypot(x - self.center[0], y - self.center[1]) - self.radius
-
-
+# Obstacles and region parts are shapes of crosscheck.scene.shapes placed at their ``center``
+# without rotation (the case file has no orientation for them), so the solver rasterises them
+# through the shapes' own signed distances; only the layer, unbounded, is the fluid's own.
 @dataclass(frozen=True)
 class Layer:
     """Fluid below the surface ``y = depth + amplitude * cos(2 pi x / wavelength + phase)``.
@@ -70,11 +48,12 @@ class Layer:
             return self.depth + self.amplitude * math.cos(self.phase) + 0.0 * x
         return self.depth + self.amplitude * np.cos(2 * math.pi * x / self.wavelength + self.phase)
 
-    def sdf(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return y - self.surface(x)
+    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+        """``y - surface(x)`` at points ``(..., 2)``: negative in the fluid, like a shape's."""
+        return points[..., 1] - self.surface(points[..., 0])
 
 
-Shape = Box | Circle | Layer
+Shape = Placed | Layer  # a placed Box or Circle, or a layer
 
 
 @dataclass(frozen=True)
@@ -133,7 +112,7 @@ class FluidSpec:
     walls: dict[str, str] = field(default_factory=dict)
     no_slip: bool = False
     lid: Lid | None = None
-    obstacles: tuple[Shape, ...] = ()
+    obstacles: tuple[Placed, ...] = ()  # a placed Box or Circle each
     initial: tuple[RegionPart, ...] = ()   # empty: the domain is full of fluid (no free surface)
     density: float = 1000.0
     kinematic_viscosity: float = 0.0
@@ -182,12 +161,14 @@ def _shape(f: Fields, dim: int, *, allow_layer: bool) -> Shape:
     kind = present[0]
     s = f.sub(kind)
     if kind == "box":
-        shape: Shape = Box(_point(s, "center", dim),
-                           tuple(float(v) for v in s.vector("size", dim, positive=True, unit="m")))
+        center = _point(s, "center", dim)
+        size = tuple(float(v) for v in s.vector("size", dim, positive=True, unit="m"))
+        shape: Shape = Placed(Box(size=size), center)
     elif kind == "circle":
         if dim != 2:
             raise s.error("", "a circle only in 2D cases")
-        shape = Circle(_point(s, "center", dim), s.number("radius", positive=True, unit="m"))
+        center = _point(s, "center", dim)
+        shape = Placed(Circle(radius=s.number("radius", positive=True, unit="m")), center)
     else:
         amplitude = s.number("amplitude", 0.0, unit="m")
         wavelength = s.number("wavelength", None, positive=True, unit="m")

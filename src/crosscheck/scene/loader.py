@@ -24,24 +24,18 @@ from crosscheck.scene.fields import Fields, check_number, check_vector, one_of
 from crosscheck.scene.model import (
     ENGINE_NAMES,
     Body,
-    Box,
-    Capsule,
-    Circle,
-    Cylinder,
     Drag,
     Effects,
     Ground,
     Load,
     Material,
-    Mesh,
-    Polygon,
     Reference,
     RunSettings,
     Scene,
-    Sphere,
     Spring,
     Tolerance,
 )
+from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
 
 DEFAULT_MATERIAL = Material(name="default", friction=0.5, restitution=0.0)
 REFERENCE_KINDS = ("analytic", "table", "fine-step", "engine", "none")
@@ -300,35 +294,13 @@ def _convex_polygon(f: Fields, field: str, raw: Any, pts: np.ndarray) -> Polygon
     return Polygon(vertices=pts)
 
 
-def _mass_properties(shape: Any, density: float) -> Any:
-    """Mass, centroid and inertia about the centroid of a uniform-density shape."""
-    match shape:
-        case Sphere(radius=r):
-            return massprops.sphere(r, density)
-        case Box(size=s) if len(s) == 3:
-            return massprops.box(s, density)
-        case Box(size=s):
-            return massprops.box2d(s, density)
-        case Capsule(radius=r, length=ln):
-            return massprops.capsule(r, ln, density)
-        case Cylinder(radius=r, length=ln):
-            return massprops.cylinder(r, ln, density)
-        case Mesh(vertices=v, faces=fc):
-            return massprops.mesh_mass_properties(v, fc, density)
-        case Circle(radius=r):
-            return massprops.circle(r, density)
-        case Polygon(vertices=v):
-            return massprops.polygon(v, density)
-    raise TypeError(f"no mass properties for {shape!r}")  # pragma: no cover
-
-
 def _checked_mass_properties(f: Fields, shape: Any, density: float, mass: float | None = None
                              ) -> Any:
     """Mass properties of the shape (scaled to ``mass`` if given), refused when floating point
     cannot represent them: a size so large or small that the volume overflows or underflows."""
     try:
         with np.errstate(all="ignore"):
-            props = _mass_properties(shape, density)
+            props = massprops.shape_mass_properties(shape, density)
             if mass is not None:
                 props = massprops.with_mass(props, mass)
             second = props.inertia if hasattr(props, "inertia") else props.moment

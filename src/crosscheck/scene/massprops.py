@@ -22,6 +22,9 @@ Three ways of computing the inertia of a mesh are provided, the ones the course 
 * :func:`bounding_box_mass_properties`: the solid axis-aligned bounding box.
 * :func:`sampled_mass_properties`: Monte Carlo point sampling of the bounding box with an
   inside test.
+
+:func:`shape_mass_properties` dispatches a shape of :mod:`crosscheck.scene.shapes` (the one shape
+vocabulary of scenes) to its closed form or to the exact mesh computation.
 """
 
 from __future__ import annotations
@@ -31,6 +34,18 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+
+from crosscheck.scene.shapes import (
+    Box,
+    Capsule,
+    Circle,
+    Cylinder,
+    Mesh,
+    Polygon,
+    Shape,
+    Sphere,
+    points_inside,  # the ray-parity inside test lives with the shapes; re-exported here
+)
 
 __all__ = [
     "MassProperties2D",
@@ -49,6 +64,7 @@ __all__ = [
     "points_inside",
     "polygon",
     "sampled_mass_properties",
+    "shape_mass_properties",
     "sphere",
     "with_mass",
 ]
@@ -387,70 +403,6 @@ def _triangles(mesh) -> np.ndarray:
     return v[f]
 
 
-def points_inside(triangles, points) -> np.ndarray:
-    """Inside test for a closed triangle mesh by ray parity.
-
-    A ray from each point towards +z crosses the surface an odd number of times exactly when
-    the point is inside. Triangles are projected on the xy-plane; a point is counted in a
-    projected triangle with edge functions and the top-left rule (computed from a canonical edge
-    direction so that shared edges are decided identically on both sides, and a ray through an
-    edge or vertex is counted once); the crossing must lie above the point. Points are sorted by
-    x and, per triangle, only those within its x- and y-extent are tested, so the cost is
-    ``O(N log N + sum over triangles of the points in its extent)``. Does not use trimesh's
-    ``contains`` (which needs rtree or embree).
-    """
-    tri = np.asarray(triangles, dtype=float).reshape(-1, 3, 3)
-    pts = np.asarray(points, dtype=float).reshape(-1, 3)
-    order = np.argsort(pts[:, 0], kind="stable")
-    px, py, pz = pts[order, 0], pts[order, 1], pts[order, 2]
-    crossings = np.zeros(len(pts), dtype=np.int64)
-
-    # project, drop triangles with no xy-area (vertical faces), orient counter-clockwise
-    area2 = ((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
-             - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1]))
-    keep = area2 != 0.0
-    tri, area2 = tri[keep], area2[keep]
-    cw = area2 < 0
-    tri[cw] = tri[cw][:, ::-1]
-    area2 = np.abs(area2)
-    lo_x, hi_x = tri[:, :, 0].min(axis=1), tri[:, :, 0].max(axis=1)
-    start = np.searchsorted(px, lo_x, side="left")
-    stop = np.searchsorted(px, hi_x, side="right")
-
-    for k in np.nonzero(stop > start)[0]:
-        t = tri[k]
-        sl = slice(start[k], stop[k])
-        x, y = px[sl], py[sl]
-        sel = (y >= t[:, 1].min()) & (y <= t[:, 1].max())
-        if not sel.any():
-            continue
-        idx = np.nonzero(sel)[0] + start[k]
-        x, y = px[idx], py[idx]
-        inside = np.ones(len(idx), dtype=bool)
-        w = []
-        for i in range(3):
-            u, v = t[i], t[(i + 1) % 3]
-            # edge function of u->v, computed from the lexicographically smaller endpoint
-            if (u[0], u[1]) <= (v[0], v[1]):
-                e = (v[0] - u[0]) * (y - u[1]) - (v[1] - u[1]) * (x - u[0])
-            else:
-                e = -((u[0] - v[0]) * (y - v[1]) - (u[1] - v[1]) * (x - v[0]))
-            dx, dy = v[0] - u[0], v[1] - u[1]
-            top_left = dy < 0 or (dy == 0 and dx < 0)
-            inside &= (e > 0) | ((e == 0) & top_left)
-            w.append(e)
-        if not inside.any():
-            continue
-        # barycentric weights: edge i (t_i -> t_{i+1}) weighs the opposite vertex t_{i+2}
-        z_hit = (w[1] * t[0, 2] + w[2] * t[1, 2] + w[0] * t[2, 2]) / area2[k]
-        hit = inside & (z_hit > pz[idx])
-        crossings[idx[hit]] += 1
-
-    result = np.empty(len(pts), dtype=bool)
-    result[order] = (crossings % 2) == 1
-    return result
-
-
 def sampled_mass_properties(mesh, density: float, n_samples: int = 100_000,
                             seed: int | None = 0) -> MassProperties3D:
     """Monte Carlo estimate by point sampling (the seeds' "point sampling" approximation).
@@ -524,3 +476,31 @@ def load_mesh(path, *, check: bool = True):
         except MeshError as exc:
             raise MeshError(exc.message, p) from None
     return mesh
+
+
+# --------------------------------------------------------------------------------------------
+# scene shapes
+# --------------------------------------------------------------------------------------------
+
+
+def shape_mass_properties(shape: Shape, density: float) -> MassProperties3D | MassProperties2D:
+    """Mass, centroid and inertia about the centroid of a uniform-density scene shape: the closed
+    forms above, :func:`mesh_mass_properties` for a mesh. A box is 3D or 2D by its size."""
+    match shape:
+        case Sphere(radius=r):
+            return sphere(r, density)
+        case Box(size=s) if len(s) == 3:
+            return box(s, density)
+        case Box(size=s):
+            return box2d(s, density)
+        case Capsule(radius=r, length=ln):
+            return capsule(r, ln, density)
+        case Cylinder(radius=r, length=ln):
+            return cylinder(r, ln, density)
+        case Mesh(vertices=v, faces=fc):
+            return mesh_mass_properties(v, fc, density)
+        case Circle(radius=r):
+            return circle(r, density)
+        case Polygon(vertices=v):
+            return polygon(v, density)
+    raise TypeError(f"no mass properties for {shape!r}")  # pragma: no cover

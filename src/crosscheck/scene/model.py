@@ -22,58 +22,20 @@ from typing import Any
 
 import numpy as np
 
+# The shapes live in their own module, shared with the fluid and mass properties; re-exported here
+# so that ``from crosscheck.scene.model import Box`` keeps working.
+from crosscheck.scene.shapes import (  # noqa: F401
+    Box,
+    Capsule,
+    Circle,
+    Cylinder,
+    Mesh,
+    Polygon,
+    Shape,
+    Sphere,
+)
+
 ENGINE_NAMES = ("inhouse", "mujoco", "pybullet", "pymunk")
-
-
-# -- shapes ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Sphere:
-    radius: float
-    kind: str = "sphere"
-
-
-@dataclass(frozen=True)
-class Box:
-    size: np.ndarray  # full side lengths, (3,) in 3D or (2,) in 2D
-    kind: str = "box"
-
-
-@dataclass(frozen=True)
-class Capsule:
-    radius: float
-    length: float  # length of the cylindrical part, along the body z axis
-    kind: str = "capsule"
-
-
-@dataclass(frozen=True)
-class Cylinder:
-    radius: float
-    length: float  # along the body z axis
-    kind: str = "cylinder"
-
-
-@dataclass(frozen=True)
-class Mesh:
-    path: Path  # resolved, absolute
-    vertices: np.ndarray  # (V, 3) in the body frame (the file's coordinates times scale)
-    faces: np.ndarray  # (F, 3) int
-    scale: float = 1.0
-    kind: str = "mesh"
-
-
-@dataclass(frozen=True)
-class Circle:
-    radius: float
-    kind: str = "circle"
-
-
-@dataclass(frozen=True)
-class Polygon:
-    vertices: np.ndarray  # (K, 2), counter-clockwise, convex
-    kind: str = "polygon"
-
-
-Shape = Sphere | Box | Capsule | Cylinder | Mesh | Circle | Polygon
 
 
 @dataclass(frozen=True)

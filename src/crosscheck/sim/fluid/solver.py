@@ -80,10 +80,12 @@ class FluidState:
         xc = (np.arange(self.nx) + 0.5) * self.dx
         yc = (np.arange(self.ny) + 0.5) * self.dx
         self.xc, self.yc = np.meshgrid(xc, yc, indexing="ij")
+        self.centres = np.stack([self.xc, self.yc], axis=-1)  # (nx, ny, 2): shape query points
 
+        # a cell is solid when its centre is strictly inside an obstacle (docs/fluid.md)
         self.solid = np.zeros((self.nx, self.ny), bool)
-        for shape in spec.obstacles:
-            self.solid |= shape.sdf(self.xc, self.yc) < 0.0
+        for obstacle in spec.obstacles:
+            self.solid |= obstacle.contains(self.centres)
         self.has_solid = bool(self.solid.any())
         sides = ("left", "right", "bottom", "top")
         self.open_sides = np.array([spec.walls.get(s, "solid") == "open" for s in sides])
@@ -148,7 +150,7 @@ class FluidState:
             return np.full((self.nx, self.ny), -1e3 * (self.lx + self.ly))
         phi = None
         for part in spec.initial:
-            d = part.shape.sdf(self.xc, self.yc)
+            d = part.shape.signed_distance(self.centres)
             if phi is None:
                 phi = d
             elif part.subtract:
