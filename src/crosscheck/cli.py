@@ -1,5 +1,9 @@
 """The ``crosscheck`` command line: one module per command under crosscheck.commands.
 
+Commands are found, not listed: every public module of ``crosscheck.commands`` (a name not
+starting with ``_``) provides ``register(subparsers)``, which sets ``func`` on its parser, and
+``ORDER`` (its place in ``--help``). Adding a command is adding one module.
+
 Exit status: 0 success (every applicable cell passes), 1 a physics failure or regression,
 2 a usage or input error (a broken case file), so CI can tell them apart.
 """
@@ -8,13 +12,22 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import pkgutil
 import sys
 
 from crosscheck import __version__
 from crosscheck.errors import CrosscheckError
 
-# Each module provides register(subparsers) and sets func=run on its parser.
-COMMANDS = ("list", "show", "inertia", "run", "baseline", "sweep")
+
+
+def command_modules() -> list:
+    """The command modules, in their ORDER (then by name)."""
+    import crosscheck.commands as package
+
+    modules = [importlib.import_module(f"{package.__name__}.{info.name}")
+               for info in pkgutil.iter_modules(package.__path__)
+               if not info.name.startswith("_")]
+    return sorted(modules, key=lambda m: (getattr(m, "ORDER", 100), m.__name__))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,13 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"crosscheck {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMANDS:
-        try:
-            module = importlib.import_module(f"crosscheck.commands.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"crosscheck.commands.{name}":
-                continue  # a command not written yet
-            raise
+    for module in command_modules():
         module.register(sub)
     return parser
 

@@ -17,6 +17,9 @@ from crosscheck.commands._json import add_json_flag, emit, human_output
 DEFAULT_BASELINE = "reports/baseline.json"
 
 
+ORDER = 5  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("baseline", help="write or check the committed regression baseline",
                               description=__doc__.split("\n\n")[1])

@@ -28,6 +28,9 @@ METHODS = {
 }
 
 
+ORDER = 3  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "inertia",

@@ -13,6 +13,9 @@ from crosscheck.errors import CaseError
 from crosscheck.scene.loader import find_cases, load_case
 
 
+ORDER = 1  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("list", help="list case files with their tags")
     p.add_argument("paths", nargs="*", default=["cases"], metavar="PATH",

@@ -24,6 +24,9 @@ from crosscheck.commands._json import add_json_flag, emit, human_output
 from crosscheck.errors import CrosscheckError
 
 
+ORDER = 4  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "run", help="run cases on every applicable engine and integrator, write reports",

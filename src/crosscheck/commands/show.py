@@ -17,6 +17,9 @@ from crosscheck.scene.loader import load_case
 from crosscheck.scene.model import Body, Scene
 
 
+ORDER = 2  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("show", help="explain how a case file was understood")
     p.add_argument("file", metavar="FILE", help="a case file")

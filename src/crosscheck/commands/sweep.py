@@ -16,6 +16,9 @@ from pathlib import Path
 from crosscheck.commands._json import add_json_flag, emit, human_output
 
 
+ORDER = 6  # its place in crosscheck --help
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("sweep", help="integrators over a range of steps: accuracy, cost, "
                               "order of convergence, largest stable step",
