@@ -19,7 +19,6 @@ from crosscheck import __version__
 from crosscheck.errors import CrosscheckError
 
 
-
 def command_modules() -> list:
     """The command modules, in their ORDER (then by name)."""
     import crosscheck.commands as package

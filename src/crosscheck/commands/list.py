@@ -12,7 +12,6 @@ from rich.table import Table
 from crosscheck.errors import CaseError
 from crosscheck.scene.loader import find_cases, load_case
 
-
 ORDER = 1  # its place in crosscheck --help
 
 

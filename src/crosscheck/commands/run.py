@@ -23,7 +23,6 @@ import numpy as np
 from crosscheck.commands._json import add_json_flag, emit, human_output
 from crosscheck.errors import CrosscheckError
 
-
 ORDER = 4  # its place in crosscheck --help
 
 

@@ -16,7 +16,6 @@ from rich.table import Table
 from crosscheck.scene.loader import load_case
 from crosscheck.scene.model import Body, Scene
 
-
 ORDER = 2  # its place in crosscheck --help
 
 

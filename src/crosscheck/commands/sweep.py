@@ -15,7 +15,6 @@ from pathlib import Path
 
 from crosscheck.commands._json import add_json_flag, emit, human_output
 
-
 ORDER = 6  # its place in crosscheck --help
 
 
