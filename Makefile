@@ -26,7 +26,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rigid.py
-	$(BIN)/python benchmarks/bench_overhead.py
+	$(BIN)/python benchmarks/bench_cost.py
 	$(BIN)/python benchmarks/bench_fluid.py
 
 lint: $(STAMP)

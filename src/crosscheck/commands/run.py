@@ -49,6 +49,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "<engine>-<integrator>-dt<dt>.npz")
     p.add_argument("--no-cost", action="store_true",
                    help="skip the cost pass (timed stepping without recording): verdicts only")
+    p.add_argument("--cost-repeats", type=int, default=None, metavar="N",
+                   help="time each cell's stepping at least N times (default 3)")
+    p.add_argument("--cost-seconds", type=float, default=None, metavar="S",
+                   help="and for at least S seconds in all (default 0.2)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help=f"worker processes (default: the number of cores, {os.cpu_count()})")
     p.add_argument("--worker-memory", type=float, default=768.0, metavar="MB",
@@ -84,6 +88,25 @@ def _engine_refs(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _cost_option(args) -> bool | dict:
+    """--no-cost, --cost-repeats, --cost-seconds as build_matrix's ``cost``."""
+    from crosscheck.runner.plan import UsageError
+
+    if args.no_cost:
+        return False
+    plan = {}
+    if args.cost_repeats is not None:
+        if args.cost_repeats < 1:
+            raise UsageError("--cost-repeats: expected a positive integer, "
+                             f"got {args.cost_repeats}")
+        plan["min_repeats"] = args.cost_repeats
+    if args.cost_seconds is not None:
+        if not args.cost_seconds >= 0:
+            raise UsageError(f"--cost-seconds: expected seconds >= 0, got {args.cost_seconds}")
+        plan["min_seconds"] = args.cost_seconds
+    return plan or True
+
+
 def run(args) -> int:
     with human_output(args.json):
         status, doc = _run(args)
@@ -117,7 +140,7 @@ def _run(args) -> tuple[int, dict]:
     matrix = build_matrix(
         scenes, engines=parse_list(args.engines), integrators=parse_list(args.integrators),
         dts=parse_dts(args.dt), out=args.out, save_trajectories=args.save_trajectories,
-        timeout=args.timeout, engine_refs=refs, cost=not args.no_cost)
+        timeout=args.timeout, engine_refs=refs, cost=_cost_option(args))
     if not matrix.cells:
         raise UsageError("no cells to run: no case lists any of the selected engines")
 

@@ -80,11 +80,21 @@ class Cost:
             "per_simulated_second": w_min * per,
             "per_simulated_second_median": w_med * per,
             "cpu_per_simulated_second": min(self.cpu) * per,
-            # The spread of the repetitions, relative to the minimum (0 with one repetition).
-            "spread": (w_max - w_min) / w_min if w_min > 0 else 0.0,
+            # The spread: the interquartile range of the repetitions relative to their median
+            # (robust to the one repetition a busy machine disturbs; 0 with one repetition),
+            # and the full range relative to the minimum.
+            "spread": _iqr(self.wall) / w_med if w_med > 0 else 0.0,
+            "range": (w_max - w_min) / w_min if w_min > 0 else 0.0,
             "us_per_step": 1e6 * w_min / self.steps if self.steps else None,
             "note": self.note,
         }
+
+
+def _iqr(values: list[float]) -> float:
+    if len(values) < 2:
+        return 0.0
+    q1, _, q3 = statistics.quantiles(values, n=4, method="inclusive")
+    return q3 - q1
 
 
 @dataclass

@@ -148,7 +148,9 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
     from crosscheck.engines.driver import CostPlan, run
 
     t0 = time.perf_counter()
-    ran = run(engine, scene, integrator, dt, cost=CostPlan() if task.get("cost", True) else None)
+    cost = task.get("cost", True)  # True, False, or CostPlan fields
+    plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan() if cost else None
+    ran = run(engine, scene, integrator, dt, cost=plan)
     run_seconds = time.perf_counter() - t0
     result["run_seconds"] = run_seconds
     if ran.cost is not None:

@@ -119,10 +119,12 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
                  integrators: list[str] | None = None, dts: list[float] | None = None,
                  out: str | Path | None = None, save_trajectories: bool = False,
                  timeout: float | None = None, engine_refs: dict[str, str] | None = None,
-                 reference_dir: str | Path | None = None, cost: bool = True) -> Matrix:
+                 reference_dir: str | Path | None = None,
+                 cost: bool | dict[str, Any] = True) -> Matrix:
     """Tasks for every scene: shared reference runs first, then one cell per combination.
 
-    ``cost=False`` skips every cell's cost pass (docs/metrics.md, "Cost"): verdicts only.
+    ``cost=False`` skips every cell's cost pass (docs/metrics.md, "Cost"): verdicts only; a
+    dict sets the cost pass's repetitions (``engines.driver.CostPlan`` fields).
 
     ``engines`` filters each case's own ``run.engines`` (a case never runs on an engine it does
     not list); ``integrators`` replaces the case's lists (``engine.integrator`` entries apply to
@@ -180,7 +182,7 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
                         "save_trajectories": bool(save_trajectories), "reference": spec,
                         "reference_file": None, "reference_error": None,
                         "engine_refs": dict(engine_refs or {}), "depends_on": None,
-                        "cost": bool(cost),
+                        "cost": dict(cost) if isinstance(cost, dict) else bool(cost),
                     }
                     if needs_run(spec):
                         if ref_dir is None:
