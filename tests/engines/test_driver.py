@@ -150,8 +150,37 @@ def test_fused_path_equals_the_generic_loop(engine, text, integrator):
     assert np.ptp(fused.com[:, 0, 1]) > 0.01  # it moves
     _assert_same(fused, generic)
     plan = sampling_plan(scene, scene.run.dt)
-    np.testing.assert_array_equal(fused.t, np.arange(plan.n_samples) * plan.steps_per_sample
-                                  * scene.run.dt)
+    np.testing.assert_array_equal(fused.t, plan.times())
+
+
+@pytest.mark.parametrize(("engine", "text", "integrator"), [
+    ("inhouse", SPRINGS_2D, "rk4"), ("mujoco", SPINNERS_3D, "rk4"),
+    ("pybullet", SPINNERS_3D, "maximal"), ("pymunk", SPRINGS_2D, "position_first"),
+])
+def test_a_run_ends_at_its_duration_with_a_shorter_last_interval(engine, text, integrator):
+    # 0.5 s sampled every 0.007 s: 71 whole intervals end at 0.497 s. The run must not stop
+    # there (the old plan did): its last sample is at 0.5 s, three steps later, and equals
+    # a run sampled at every step at that time.
+    scene = load_case_text(text)
+    traj = get_engine(engine).run(scene, integrator, 1e-3)
+    assert traj.failure is None
+    assert traj.t[-2] == pytest.approx(0.497, abs=1e-12) and traj.t[-1] == 0.5
+    every = load_case_text(text.replace("sample_every = 0.007", "sample_every = 0.001"))
+    fine = get_engine(engine).run(every, integrator, 1e-3)
+    assert fine.t[-1] == 0.5
+    np.testing.assert_array_equal(traj.com[-1], fine.com[-1])
+    np.testing.assert_array_equal(traj.vel[-1], fine.vel[-1])
+
+
+def test_a_step_that_does_not_divide_the_duration_is_refused():
+    from crosscheck.engines.base import TimeGridError
+    from crosscheck.errors import CaseError
+
+    scene = load_case_text(SPINNERS_3D)
+    with pytest.raises(TimeGridError, match="does not divide the duration 0.5 s"):
+        sampling_plan(scene, 0.003)
+    with pytest.raises(CaseError, match=r"run\.dt.*divides run\.duration"):
+        load_case_text(SPINNERS_3D.replace("dt = 1e-3", "dt = 3e-3"))
 
 
 @pytest.mark.parametrize("runaway_factor", [np.inf, 1e6], ids=["engine-check", "runaway-cut"])

@@ -60,6 +60,22 @@ def _all_integrators(scene, engines, engine_refs) -> list[str]:
     return out
 
 
+def _default_dts(scene) -> list[float]:
+    """The case's dt times 4, 2, 1, 1/2, 1/4, 1/8; for a rigid case each rounded to the nearest
+    step that divides the duration (a run takes exactly duration / dt steps)."""
+    dts = [scene.run.dt * f for f in (4, 2, 1, 0.5, 0.25, 0.125)]
+    if scene.fluid is not None:
+        return dts
+    duration = scene.run.duration
+    out = []
+    for dt in dts:
+        steps = max(1, round(duration / dt))
+        dt = dt if abs(steps * dt - duration) <= 1e-9 * duration else duration / steps
+        if dt not in out:
+            out.append(dt)
+    return out
+
+
 def run(args) -> int:
     with human_output(args.json):
         status, payload = _run(args)
@@ -83,7 +99,7 @@ def _run(args) -> tuple[int, dict]:
         raise UsageError(f"{args.case}: no such case file")
     refs = _engine_refs(args.engine_ref)
     scene = load_case(args.case, unchecked_engines=refs)
-    dts = parse_dts(args.dts) or [scene.run.dt * f for f in (4, 2, 1, 0.5, 0.25, 0.125)]
+    dts = parse_dts(args.dts) or _default_dts(scene)
     engines = parse_list(args.engines)
     integrators = parse_list(args.integrators) or _all_integrators(scene, engines, refs)
     out = Path(args.out or f"reports/sweep-{safe_name(scene.name)}")

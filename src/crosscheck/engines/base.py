@@ -126,33 +126,66 @@ class EngineBase:
 
 @dataclass(frozen=True)
 class SamplingPlan:
-    """How many steps between recorded samples, and how many samples in all."""
+    """Samples every ``steps_per_sample`` steps from 0 to ``total_steps``, plus a last sample at
+    ``total_steps`` when the interval does not divide the run (a shorter final interval), so a
+    run always ends at its duration."""
 
     steps_per_sample: int
-    n_samples: int
+    total_steps: int
     dt: float
 
     @property
     def sample_interval(self) -> float:
         return self.steps_per_sample * self.dt
 
-    def time(self, i: int) -> float:
-        return i * self.steps_per_sample * self.dt
-
     @property
-    def total_steps(self) -> int:
-        return (self.n_samples - 1) * self.steps_per_sample
+    def n_samples(self) -> int:
+        regular = self.total_steps // self.steps_per_sample + 1
+        return regular + (1 if self.total_steps % self.steps_per_sample else 0)
+
+    def steps_at(self, i: int) -> int:
+        """Steps taken before sample i."""
+        return min(i * self.steps_per_sample, self.total_steps)
+
+    def steps_before(self, i: int) -> int:
+        """Steps from sample i - 1 to sample i."""
+        return self.steps_at(i) - self.steps_at(i - 1)
+
+    def time(self, i: int) -> float:
+        return self.steps_at(i) * self.dt
+
+    def times(self, count: int | None = None) -> np.ndarray:
+        n = self.n_samples if count is None else count
+        return np.array([self.steps_at(i) for i in range(n)], dtype=np.int64) * self.dt
+
+
+class TimeGridError(ValueError):
+    """A step that does not divide the run's duration into a whole number of steps."""
+
+
+def whole_steps(duration: float, dt: float) -> int | None:
+    """duration / dt when it is a whole number (to 1e-9 relative), else None."""
+    n = round(duration / dt)
+    if n >= 1 and abs(n * dt - duration) <= 1e-9 * duration:
+        return int(n)
+    return None
 
 
 def sampling_plan(scene: Scene, dt: float) -> SamplingPlan:
     """Record every ``round(sample_every / dt)`` steps (at least 1) up to the case's duration.
 
     Sample times are exact multiples of the step, so every engine is compared at the same times
-    when it runs at the same dt; a reference at another dt is interpolated by the comparer.
+    when it runs at the same dt; a reference at another dt is interpolated by the comparer. The
+    run takes exactly duration / dt steps: a step that does not divide the duration is refused
+    (TimeGridError), never run short; a sampling interval that does not divide it ends with a
+    shorter final interval.
     """
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"time step must be positive and finite, got {dt}")
+    total = whole_steps(scene.run.duration, dt)
+    if total is None:
+        raise TimeGridError(
+            f"dt = {dt:g} s does not divide the duration {scene.run.duration:g} s of case "
+            f"{scene.name!r} into a whole number of steps ({scene.run.duration / dt:.6g})")
     steps = max(1, int(round(scene.run.sample_every / dt)))
-    interval = steps * dt
-    n = int(math.floor(scene.run.duration / interval + 1e-9)) + 1
-    return SamplingPlan(steps_per_sample=steps, n_samples=n, dt=dt)
+    return SamplingPlan(steps_per_sample=steps, total_steps=total, dt=dt)

@@ -177,15 +177,18 @@ def _runaway(scene: Scene, traj: Trajectory, factor: float) -> tuple[int | None,
 
 
 # -- the accuracy pass ---------------------------------------------------------------------------
-def _record_generic(session: Session, rows: np.ndarray, k: int) -> tuple[int, str | None]:
-    """rows[0] = the current state; then k steps and a read per row. Returns (valid rows,
-    failure reason or None); rows from the failure on are not valid."""
-    rows[0] = session.read_raw()
+def _record_generic(session: Session, rows: np.ndarray, plan: SamplingPlan, first: int = 1
+                    ) -> tuple[int, str | None]:
+    """rows[first - 1] holds the current state (written here when first == 1); then the plan's
+    steps and a read per row. Returns (valid rows, failure reason or None); rows from the
+    failure on are not valid."""
+    if first == 1:
+        rows[0] = session.read_raw()
     advance, read = session.advance, session.read_raw
     isfinite = math.isfinite
-    for i in range(1, len(rows)):
+    for i in range(first, len(rows)):
         try:
-            advance(k)
+            advance(plan.steps_before(i))
         except StepFailure as exc:
             return i, str(exc)
         row = rows[i]
@@ -212,14 +215,19 @@ def record(session: Session, scene: Scene, plan: SamplingPlan, *,
     else:
         fast = getattr(session, "record", None) if fused else None
         if fast is not None and getattr(session, "fused", False):
-            count, reason = fast(n, k, rows)
+            # The fast path takes the whole intervals; a shorter final one is the generic
+            # loop's.
+            regular = plan.total_steps // k + 1
+            count, reason = fast(regular, k, rows[:regular])
             finite = np.isfinite(rows[:count]).all(axis=1)
             if not finite.all():  # engines' own checks may let a non-finite sample through
                 count, reason = int(np.argmin(finite)), "non-finite state"
+            if reason is None and regular < n:
+                count, reason = _record_generic(session, rows, plan, first=regular)
         else:
-            count, reason = _record_generic(session, rows, k)
+            count, reason = _record_generic(session, rows, plan)
         failure_time = plan.time(count) if reason else None
-    t = np.arange(count) * k * plan.dt
+    t = plan.times(count)
     arrays, extras = session.convert(rows[:count], t)
     traj = _trajectory(scene, t, arrays, extras, {})
     j, why, scale = _runaway(scene, traj, runaway_factor)
@@ -235,8 +243,9 @@ def record(session: Session, scene: Scene, plan: SamplingPlan, *,
         "non_finite": "any non-finite value in a sample",
         "engine": "a step the engine reports as failed",
         "runaway_factor": runaway_factor, "energy_scale": scale}
-    traj.meta["steps"] = max(count - 1, 0) * k
-    return traj, max(count - 1, 0) * k
+    steps = plan.steps_at(count - 1) if count else 0
+    traj.meta["steps"] = steps
+    return traj, steps
 
 
 # -- the cost pass -------------------------------------------------------------------------------

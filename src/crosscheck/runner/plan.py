@@ -159,6 +159,15 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
     for scene in scenes:
         case_engines = [e for e in scene.run.engines if engines is None or e in engines]
         step_list = dts or [scene.run.dt]
+        if scene.fluid is None:
+            from crosscheck.engines.base import whole_steps
+
+            for dt in step_list:
+                if whole_steps(scene.run.duration, dt) is None:
+                    raise UsageError(
+                        f"dt = {dt:g} s does not divide the duration {scene.run.duration:g} s "
+                        f"of case {scene.name!r} ({scene.source}) into a whole number of steps "
+                        f"({scene.run.duration / dt:.6g}); a run never ends early")
         cell_timeout = float(timeout if timeout is not None else scene.run.timeout)
         matrix.cases.append(CaseInfo(
             name=scene.name, file=str(scene.source), sha256=scene.source_sha256,

@@ -113,7 +113,7 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
         raise case.error("dimension", "2 or 3", dimension)
     case.done()
 
-    run = _run(top.sub("run"), unchecked)
+    run = _run(top.sub("run"), unchecked, fluid=top.has("fluid"))
     materials = _materials(top.sub("materials", {}))
     has_fluid = top.has("fluid")
     fluid = None
@@ -152,11 +152,19 @@ def _fluid(fields: Fields, dimension: int) -> Any:
 
 
 # -- sections -------------------------------------------------------------------------------------
-def _run(f: Fields, unchecked: frozenset[str]) -> RunSettings:
+def _run(f: Fields, unchecked: frozenset[str], fluid: bool = False) -> RunSettings:
     duration = f.number("duration", positive=True, unit="s")
     dt = f.number("dt", positive=True, unit="s")
     if dt > duration:
         raise f.error("dt", f"a step no longer than run.duration ({duration} s)", dt)
+    # A rigid run takes exactly duration / dt steps (a fluid's adaptive steps land on the
+    # duration by themselves): a step that does not divide it would end the run early.
+    if not fluid:
+        steps = round(duration / dt)
+        if steps < 1 or abs(steps * dt - duration) > 1e-9 * duration:
+            raise f.error("dt", f"a step that divides run.duration ({duration} s) into a whole "
+                                f"number of steps (here {duration / dt:.6g}; e.g. "
+                                f"{duration / max(steps, 1):.6g})", dt)
     sample_every = f.number("sample_every", dt, positive=True, unit="s")
     if sample_every > duration:
         raise f.error("sample_every", f"an interval no longer than run.duration ({duration} s)",

@@ -183,11 +183,18 @@ class RunSettings:
     integrators: dict[str, tuple[str, ...]]  # engine -> integrator names (empty: engine default)
     timeout: float = 600.0  # wall seconds one cell may take before it is reported as a hang
 
-    def n_samples(self) -> int:
-        return int(round(self.duration / self.sample_every)) + 1
-
     def sample_times(self) -> np.ndarray:
-        return np.arange(self.n_samples()) * self.sample_every
+        """The sample times of a run at ``dt`` (engines.base.sampling_plan): every
+        round(sample_every / dt) steps, and the duration itself."""
+        steps = max(1, int(round(self.sample_every / self.dt)))
+        total = int(round(self.duration / self.dt))
+        marks = list(range(0, total + 1, steps))
+        if marks[-1] != total:
+            marks.append(total)
+        return np.array(marks, dtype=np.int64) * self.dt
+
+    def n_samples(self) -> int:
+        return len(self.sample_times())
 
 
 @dataclass(frozen=True)
