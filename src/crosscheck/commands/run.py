@@ -107,6 +107,33 @@ def _cost_option(args) -> bool | dict:
     return plan or True
 
 
+def _nothing_to_run(scenes, matrix) -> list[str]:
+    """A line per case none of whose cells any engine can run, with each engine's reason:
+    said before the run starts (the run then fails if no case has anything to run)."""
+    from crosscheck.runner.cell import resolve_engine
+
+    by_case: dict[str, list[dict]] = {}
+    for task in matrix.cells:
+        by_case.setdefault(task["case"], []).append(task)
+    lines = []
+    for scene in scenes:
+        reasons = []
+        for task in by_case.get(scene.name, []):
+            try:
+                engine = resolve_engine(task["engine"], task.get("engine_refs"))
+                reason = engine.not_applicable(scene, task["integrator"])
+            except Exception as exc:  # noqa: BLE001 - an unimportable engine runs nothing
+                reason = f"{type(exc).__name__}: {exc}"
+            if reason is None:
+                break
+            reasons.append(f"{task['engine']}-{task['integrator']}: {reason}")
+        else:
+            if reasons:
+                lines.append(f"{scene.source}: nothing to run: " + "; ".join(
+                    dict.fromkeys(reasons)))
+    return lines
+
+
 def run(args) -> int:
     with human_output(args.json):
         status, doc = _run(args)
@@ -143,6 +170,8 @@ def _run(args) -> tuple[int, dict]:
         timeout=args.timeout, engine_refs=refs, cost=_cost_option(args))
     if not matrix.cells:
         raise UsageError("no cells to run: no case lists any of the selected engines")
+    for line in _nothing_to_run(scenes, matrix):
+        print(line, file=sys.stderr)
 
     if args.scheduler:
         from crosscheck.runner.dask_backend import DaskBackend

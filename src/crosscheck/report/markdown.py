@@ -46,6 +46,8 @@ def headline(doc: dict[str, Any]) -> str:
         text += f"; {regressions} regression(s) against the baseline"
     if doc.get("interrupted"):
         text += f"; INTERRUPTED, {len(doc.get('not_run', []))} cell(s) not run"
+    if doc.get("checked_nothing"):
+        text += f"; FAILED: {doc['checked_nothing']}"
     return text
 
 

@@ -119,6 +119,11 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
                     c["regression"] = by_cell[c["id"]]
     failing = any(c["status"] in FAILING for c in cells) or bool(
         comparison and comparison.regressions)
+    # A run in which no cell could run checked nothing: that is not a pass.
+    if cells and all(c["status"] == "not_applicable" for c in cells):
+        doc["checked_nothing"] = ("every cell was not applicable: nothing was checked "
+                                  f"({len(cells)} cell(s))")
+        failing = True
     if interrupted:
         status = EXIT_INTERRUPTED
     else:

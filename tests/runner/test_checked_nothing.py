@@ -1,0 +1,47 @@
+"""A run that checked nothing does not pass (issue 13 point 3)."""
+
+from __future__ import annotations
+
+import json
+
+from crosscheck.cli import main
+
+ONLY_PYMUNK_3D = """
+[case]
+name = "pymunk-cannot"
+dimension = 3
+[run]
+duration = 0.1
+dt = 1e-3
+engines = ["pymunk"]
+[[bodies]]
+name = "b"
+shape = { sphere = { radius = 0.1 } }
+mass = 1.0
+position = [0.0, 0.0, 1.0]
+"""
+
+
+def test_a_run_whose_every_cell_is_not_applicable_fails_and_says_so(tmp_path, capsys):
+    case = tmp_path / "case.toml"
+    case.write_text(ONLY_PYMUNK_3D)
+    out = tmp_path / "out"
+    status = main(["run", str(case), "--out", str(out), "--workers", "1", "--progress", "none"])
+    err = capsys.readouterr().err
+    assert status == 1
+    assert f"{case}: nothing to run: pymunk-position_first: pymunk is 2D" in err
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["exit_status"] == 1 and "nothing was checked" in doc["checked_nothing"]
+    assert "FAILED: every cell was not applicable" in (out / "summary.md").read_text()
+
+
+def test_one_runnable_cell_is_enough(tmp_path, capsys):
+    case = tmp_path / "case.toml"
+    case.write_text(ONLY_PYMUNK_3D.replace('engines = ["pymunk"]',
+                                           'engines = ["pymunk", "inhouse"]'))
+    out = tmp_path / "out"
+    status = main(["run", str(case), "--out", str(out), "--workers", "1", "--progress", "none",
+                   "--no-cost"])
+    assert status == 0
+    assert "nothing to run" not in capsys.readouterr().err
+    assert "checked_nothing" not in json.loads((out / "results.json").read_text())
