@@ -30,7 +30,7 @@ INTEGRATOR_NAMES: dict[str, tuple[str, ...]] = {
 }
 
 # Names a fine-step reference accepts besides its engine's integrators: SciPy's DOP853 on the
-# in-house equations of motion (crosscheck.compare.reference).
+# independent Newton-Euler equations (crosscheck.reference.simulated).
 FINE_STEP_ONLY: tuple[str, ...] = ("dop853",)
 
 

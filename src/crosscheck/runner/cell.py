@@ -110,7 +110,7 @@ def execute_task(task: dict[str, Any]) -> dict[str, Any]:
 
 # -- references ------------------------------------------------------------------------------------
 def _execute_reference(task: dict[str, Any]) -> dict[str, Any]:
-    from crosscheck.compare.reference import compute_reference
+    from crosscheck.reference.simulated import compute_reference
 
     result = base_result(task)
     scene = load_scene(task["case_file"], task.get("engine_refs"))
@@ -168,7 +168,7 @@ def _cost(wall: float | None, simulated: float) -> float | None:
 def _finish_rigid(task, scene, traj, result, run_seconds):
     from crosscheck.compare.interp import resample
     from crosscheck.compare.metrics import compute_metrics
-    from crosscheck.compare.reference import analytic_reference
+    from crosscheck.reference.spec import analytic_reference
     from crosscheck.compare.verdict import judge, metric_table
 
     spec = task.get("reference")

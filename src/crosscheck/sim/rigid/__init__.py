@@ -6,8 +6,10 @@ Public API:
   (-> :class:`RigidState`), :class:`RigidSimulation` (model + integrator: ``advance``,
   ``observe``, ``derivative``), :func:`simulate` (Scene, integrator, dt -> recorder, run info).
 * :data:`INTEGRATORS` / :func:`get_integrator`: the registry (name, order, symplectic, rotation).
-* The generic ODE interface used by the DOP853 reference: :func:`initial_state` (flat y0),
-  :func:`state_derivative` (f(t, y)) and :func:`state_to_trajectory`, all on the same kernels.
+* The generic ODE interface: :func:`initial_state` (flat y0), :func:`state_derivative` (f(t, y))
+  and :func:`state_to_trajectory`, all on the same kernels. The DOP853 reference does not use
+  it (it integrates crosscheck.reference.newton_euler, written apart so the engine is not judged
+  against itself); tests compare the two derivatives.
 
 See docs/inhouse.md for the design and the measured numbers.
 """
