@@ -99,7 +99,7 @@ FLUID: dict[str, tuple[str, ...]] = {
 ENGINES: tuple[str, ...] = tuple(RIGID)
 
 # Names a fine-step reference accepts besides its engine's integrators: SciPy's DOP853 on the
-# in-house equations of motion (crosscheck.compare.reference).
+# independent Newton-Euler equations (crosscheck.reference.simulated).
 FINE_STEP_ONLY: tuple[str, ...] = ("dop853",)
 
 

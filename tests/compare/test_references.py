@@ -1,5 +1,6 @@
-"""References with real engines: SciPy DOP853 on the in-house equations of motion, a fine-step
-run, another engine, and the interpolation of a reference sampled at other times.
+"""References with real engines: SciPy DOP853 on the independent Newton-Euler equations
+(crosscheck.reference.newton_euler), a fine-step run, another engine, and the interpolation of a
+reference sampled at other times.
 
 The case is the tennis racket (torque-free box, I = 0.808, 0.683, 0.142 kg m^2, spin 5 rad/s
 about the intermediate axis) cut to 3 s, before its first flip, where RK4's error is smooth.
@@ -15,8 +16,9 @@ import pytest
 
 from crosscheck.compare.interp import resample, slerp
 from crosscheck.compare.metrics import compute_metrics
-from crosscheck.compare.reference import dop853_reference, reference_spec
 from crosscheck.engines import get_engine
+from crosscheck.reference.simulated import dop853_reference
+from crosscheck.reference.spec import reference_spec
 from crosscheck.rotations import quat_angle_between
 from crosscheck.runner.cell import execute_task
 from crosscheck.runner.plan import build_matrix

@@ -11,7 +11,8 @@ of a 2D adapter acts.
 Tolerances, derived rather than chosen:
 
 * Reference: the Newton-Euler equations of the scene integrated by SciPy's DOP853 to 1e-12
-  (``conftest.newton_euler``), so its own error is negligible against every bound below.
+  (``conftest.reference``, i.e. ``crosscheck.reference.newton_euler``), so its own error is
+  negligible against every bound below.
 * Each run's error bound comes from its order p (``conftest.scheme_of``) and two more runs at
   h/2 and h/4: with e(h) = C h^p + O(h^(p+1)), x_h - x_{h/2} = C h^p (1 - 2^-p) + ..., so
   Richardson's estimate of the error at h is B = |x_h - x_{h/2}| 2^p / (2^p - 1). The observed
@@ -31,7 +32,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import newton_euler, scheme_of
+from conftest import reference, scheme_of
 
 from crosscheck.engines import get_engine
 from crosscheck.scene.loader import load_case_text
@@ -120,14 +121,8 @@ def _groups(traj) -> dict[str, np.ndarray]:
 def _reference() -> dict[str, np.ndarray]:
     if "reference" not in _cache:
         t = SCENE.run.sample_times()
-        x, q, v, w = newton_euler(SCENE, t)
-        # The reference embeds the plane at z = 0: angle about z from the quaternion, unwrapped
-        # and put on the scene's own turn.
-        angle = np.unwrap(2.0 * np.arctan2(q[..., 3], q[..., 0]), axis=0)
-        start = np.array([b.angle for b in SCENE.bodies])
-        angle += 2 * math.pi * np.round((start - angle[0]) / (2 * math.pi))
-        _cache["reference"] = {"t": t, "com": x[..., :2], "angle": angle, "vel": v[..., :2],
-                               "omega": w[..., 2]}
+        ref = reference(SCENE, t)  # planar: the angle is integrated as it turns, never wrapped
+        _cache["reference"] = {"t": t, **_groups(ref)}
     return _cache["reference"]
 
 

@@ -82,7 +82,7 @@ def test_inhouse_is_the_rigid_registry_then_the_fluid_schemes():
 
 
 def test_fine_step_only_names_are_what_the_comparer_runs_without_an_engine():
-    from crosscheck.compare.reference import reference_spec
+    from crosscheck.reference.spec import reference_spec
     from crosscheck.scene.loader import load_case
 
     scene = load_case(REPO / "cases" / "rigid3d" / "free_fall.toml")

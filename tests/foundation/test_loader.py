@@ -500,7 +500,7 @@ def test_reference_integrator_names():
     for kind, integrator in (("fine-step", "dop853"), ("fine-step", "DOP853"),
                              ("fine-step", "RK4"), ("fine-step", "verlet")):
         case["reference"] = {"kind": kind, "integrator": integrator}
-        # fine-step runs the lower-cased name (crosscheck.compare.reference), on inhouse
+        # fine-step runs the lower-cased name (crosscheck.reference.spec), on inhouse
         assert load(case).reference.integrator == integrator
     case["reference"] = {"kind": "fine-step", "engine": "mujoco", "integrator": "implicitfast"}
     assert load(case).reference.engine == "mujoco"
@@ -1040,7 +1040,7 @@ def test_the_committed_not_closed_mesh_is_refused():
 
 def test_fine_step_reference_may_leave_its_step_to_the_comparer():
     # Without reference.dt the comparer runs the reference at run.dt / FINE_STEP_FACTOR.
-    from crosscheck.compare.reference import FINE_STEP_FACTOR
+    from crosscheck.reference.spec import FINE_STEP_FACTOR
     from crosscheck.scene.loader import load_case_text
 
     scene = load_case_text("""

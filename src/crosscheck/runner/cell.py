@@ -110,7 +110,7 @@ def execute_task(task: dict[str, Any]) -> dict[str, Any]:
 
 # -- references ------------------------------------------------------------------------------------
 def _execute_reference(task: dict[str, Any]) -> dict[str, Any]:
-    from crosscheck.compare.reference import compute_reference
+    from crosscheck.reference.simulated import compute_reference
 
     result = base_result(task)
     scene = load_scene(task["case_file"], task.get("engine_refs"))
@@ -178,61 +178,27 @@ def _is_trajectory(obj) -> bool:
 
 
 def _finish_rigid(task, scene, traj, result, run_seconds):
-    from crosscheck.compare.interp import resample
-    from crosscheck.compare.metrics import compute_metrics
-    from crosscheck.compare.reference import analytic_reference
-    from crosscheck.compare.verdict import judge, metric_table
+    from crosscheck.compare.evaluate import evaluate
+    from crosscheck.reference.spec import for_cell
 
-    spec = task.get("reference")
-    ref = extra = None
-    missing_reason = ""
-    if spec is not None:
-        try:
-            if spec["kind"] == "analytic":
-                ref, extra = analytic_reference(scene, traj.t, spec["solution"])
-            elif task.get("reference_file"):
-                from crosscheck.state import Trajectory
-
-                ref = Trajectory.load(task["reference_file"])
-            elif spec["kind"] == "table":
-                missing_reason = "a rigid scene has no published table reference"
-            else:
-                missing_reason = task.get("reference_error") or "reference unavailable"
-        except Exception as exc:
-            missing_reason = f"reference failed: {type(exc).__name__}: {exc}"
-            ref = extra = None
-
-    safe_extra = None
-    if extra is not None:
-        def safe_extra(s, t, _extra=extra):
-            try:
-                return _extra(s, t)
-            except Exception as exc:  # a solution-specific metric must not sink the cell
-                nonlocal missing_reason
-                missing_reason = f"extra metrics failed: {type(exc).__name__}: {exc}"
-                return {}
-
-    ms = compute_metrics(scene, traj, ref, extra=safe_extra)
-    metrics = {name: m.to_dict() for name, m in ms.metrics.items()}
-    verdict = judge(scene, task["engine"], task["integrator"], metrics,
-                    blowup_time=ms.blowup_time, blowup_reason=ms.blowup_reason,
-                    missing_reason=missing_reason)
+    reference = for_cell(scene, task.get("reference"), traj.t, saved=task.get("reference_file"),
+                         error=task.get("reference_error"))
+    verdict = evaluate(scene, traj, reference, task["engine"], task["integrator"])
     simulated = float(traj.t[-1] - traj.t[0]) if len(traj.t) > 1 else 0.0
     result.update(
         status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
-        worst=verdict.worst, simulated_time=simulated, failure=traj.failure, series=ms.series,
+        worst=verdict.worst, simulated_time=simulated, failure=traj.failure, series=verdict.series,
         engine_version=traj.meta.get("engine_version", result.get("engine_version")),
         effective=_small(traj.meta.get("effective") or traj.meta.get("settings")),
         samples=len(traj.t),
     )
-    if missing_reason:
-        result["reference_note"] = missing_reason
+    if verdict.note:
+        result["reference_note"] = verdict.note
     result["end_state"] = _end_state(traj)
-    if ref is not None and len(traj.t):
-        ref_end = resample(ref, traj.t[-1:])
-        result["reference_end"] = _end_state(ref_end)
-    if verdict.status in ("fail", "error", "blowup"):
-        result["metric_table"] = metric_table(verdict.metrics)
+    if verdict.reference_end is not None:
+        result["reference_end"] = _end_state(verdict.reference_end)
+    if verdict.failing:
+        result["metric_table"] = verdict.table()
     if task.get("save_trajectories") and task.get("out"):
         path = trajectory_path(task)
         traj.save(path)
@@ -273,35 +239,18 @@ def _end_state(traj) -> dict[str, Any] | None:
 
 
 def _finish_fluid(task, scene, record, result, run_seconds):
-    from crosscheck.compare.verdict import judge, metric_table
+    from crosscheck.compare.evaluate import evaluate
 
-    values: dict[str, float] = {}
-    note = ""
-    try:
-        from crosscheck.compare.fluid_metrics import fluid_metrics
-
-        values = fluid_metrics(scene, record)
-    except ImportError as exc:
-        note = f"fluid metrics unavailable: {exc}"
-    metrics = {}
-    for name, value in values.items():
-        value = None if value is None else float(value)
-        entry = {"value": value if value is not None and np.isfinite(value) else None}
-        if value is not None and not np.isfinite(value):
-            entry["value_text"] = str(value)
-        metrics[name] = entry
+    verdict = evaluate(scene, record, None, task["engine"], task["integrator"])
     failure = getattr(record, "failure", None)
-    blow_t = float(failure.get("time", 0.0)) if failure else None
-    verdict = judge(scene, task["engine"], task["integrator"], metrics, blowup_time=blow_t,
-                    blowup_reason=(failure or {}).get("reason"), missing_reason=note)
     meta = getattr(record, "meta", {}) or {}
     t = np.asarray(getattr(record, "t", []), float)
     simulated = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     result.update(status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
                   worst=verdict.worst, simulated_time=simulated, failure=failure, fluid=True,
                   engine_version=meta.get("engine_version", result.get("engine_version")))
-    if verdict.status in ("fail", "error", "blowup"):
-        result["metric_table"] = metric_table(verdict.metrics)
+    if verdict.failing:
+        result["metric_table"] = verdict.table()
     if task.get("out"):
         try:
             from crosscheck.report.fluid_plots import plot_fluid

@@ -130,13 +130,13 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
     not list); ``integrators`` replaces the case's lists (``engine.integrator`` entries apply to
     that engine only); ``dts`` replaces the case's step.
     """
-    from crosscheck.compare.reference import (
+    from crosscheck.engines import engine_names
+    from crosscheck.reference.spec import (
         describe,
         needs_run,
         reference_key,
         reference_spec,
     )
-    from crosscheck.engines import engine_names
 
     known = set(engine_names()) | set(engine_refs or {})
     for name in engines or []:

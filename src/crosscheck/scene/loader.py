@@ -552,7 +552,7 @@ def _check_reference_integrator(f: Fields, ref: Reference, unchecked: frozenset[
         expected = f"an integrator of {engine}, one of {list(known)}"
     name = ref.integrator
     if ref.kind == "fine-step":
-        # crosscheck.compare.reference runs the fine-step integrator by its lower-case name.
+        # crosscheck.reference.spec runs the fine-step integrator by its lower-case name.
         name = name.lower()
         known = known + FINE_STEP_ONLY
         expected += f", or {' or '.join(map(repr, FINE_STEP_ONLY))} (SciPy's DOP853)"

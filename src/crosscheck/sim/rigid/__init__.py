@@ -10,8 +10,10 @@ Public API:
   state, control, contacts, n_steps, h), the fused n-step loop; :class:`Control` holds per-body
   external wrenches (None when there are none), ``contacts`` is the contact model's slot (None).
 * :data:`INTEGRATORS` / :func:`get_integrator`: the registry (name, order, symplectic, rotation).
-* The generic ODE interface used by the DOP853 reference: :func:`initial_state` (flat y0),
-  :func:`state_derivative` (f(t, y)) and :func:`state_to_trajectory`, all on the same kernels.
+* The generic ODE interface: :func:`initial_state` (flat y0), :func:`state_derivative` (f(t, y))
+  and :func:`state_to_trajectory`, all on the same kernels. The DOP853 reference does not use
+  it (it integrates crosscheck.reference.newton_euler, written apart so the engine is not judged
+  against itself); tests compare the two derivatives.
 
 See docs/inhouse.md for the design and the measured numbers.
 """
