@@ -123,16 +123,53 @@ def angular_momentum(scene: Scene, traj: Trajectory, about: str | np.ndarray = "
     conserved by an isolated system even when it moves) or a fixed point. 3D: (T, 3); 2D: (T,).
     """
     m = _masses(scene)
+    vel = traj.vel
     if isinstance(about, str) and about == "com":
         centre = system_com(scene, traj)[:, None, :]
+        # Velocities relative to the centre of mass: the same sum (sum_i m_i (x_i - c) = 0),
+        # without the cancellation a fast-moving system would otherwise bring in.
+        vel = vel - com_velocity(scene, traj)[:, None, :]
     elif isinstance(about, str) and about == "origin":
         centre = np.zeros(scene.dimension)
     else:
         centre = np.asarray(about, float)
     r = traj.com - centre
-    p = m[None, :, None] * traj.vel
+    p = m[None, :, None] * vel
     if scene.dimension == 2:
         moments = np.array([b.moment for b in scene.bodies])
         return _cross2(r, p).sum(axis=1) + traj.omega @ moments
     spin = np.einsum("tnij,tnj->ti", world_inertia(scene, traj), traj.omega)
     return np.cross(r, p).sum(axis=1) + spin
+
+
+# -- the centre-of-mass split (frame-invariant drift, docs/metrics.md) ----------------------------
+def com_velocity(scene: Scene, traj: Trajectory) -> np.ndarray:
+    """(T, d): the system's centre-of-mass velocity."""
+    m = _masses(scene)
+    return np.einsum("n,tnd->td", m, traj.vel) / m.sum()
+
+
+def translational_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
+    """The centre of mass's share of the energy: 1/2 M |v_c|^2 - M g . c - F_tot . c.
+
+    Uniform gravity and the sum of the constant loads act on the centre of mass c alone; this
+    part changes under a Galilean boost or a shift of the origin, the rest does not.
+    """
+    m = _masses(scene)
+    c = system_com(scene, traj)
+    vc = com_velocity(scene, traj)
+    energy = 0.5 * m.sum() * np.einsum("td,td->t", vc, vc)
+    force = np.zeros(scene.dimension)
+    if scene.effects.gravity is not None:
+        force += m.sum() * np.asarray(scene.effects.gravity, float)
+    for load in scene.effects.loads:
+        force += np.asarray(load.force, float)
+    return energy - c @ force
+
+
+def internal_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
+    """total_energy - translational_energy: the kinetic energy relative to the centre of mass
+    (sum 1/2 m_i |v_i - v_c|^2 + 1/2 w.I w), the springs, and the constant loads' potential
+    relative to it (-F_i . (x_i - c); 2D also -tau theta). Invariant under a Galilean boost and
+    a shift of the origin when no spring is anchored to the world."""
+    return total_energy(scene, traj) - translational_energy(scene, traj)

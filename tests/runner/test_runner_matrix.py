@@ -190,14 +190,14 @@ def run_cli(args, cwd, timeout=120, **kw):
 def test_cli_exit_statuses(tmp_path):
     # Explicit Euler gains m g^2 T h / 2 = 0.96 J of the 96 J scale: drift 0.01 <= 0.011.
     good = write_case(tmp_path, "good", reference='kind = "none"',
-                      tolerances="energy_drift = 0.011")
+                      tolerances="translational_energy_drift = 0.011")
     er = ["--engine-ref", f"inhouse={ALL['exact']}"]
     ok = run_cli(["run", str(good), "--out", "o1", "--workers", "1", *er], tmp_path)
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "good" in ok.stdout and "2 pass" in ok.stdout
     # ... and fails a limit of 0.009.
     failing = write_case(tmp_path, "failing", reference='kind = "none"',
-                         tolerances="energy_drift = 0.009")
+                         tolerances="translational_energy_drift = 0.009")
     bad = run_cli(["run", str(failing), "--out", "o2", "--workers", "1", *er], tmp_path)
     assert bad.returncode == 1, bad.stdout + bad.stderr
     assert "FAIL    failing inhouse-euler" in bad.stdout

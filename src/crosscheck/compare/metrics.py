@@ -134,21 +134,71 @@ def downsample(t: np.ndarray, y: np.ndarray, points: int = SERIES_POINTS) -> dic
 # -- conservation ----------------------------------------------------------------------------------
 def energy_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None, out: MetricSet,
                    energy: np.ndarray, basis: Trajectory):
-    """``basis``: the samples the scale may use when there is no reference (before a blow-up)."""
-    scale, source = scales.energy_scale(scene, basis, ref)
+    """``basis``: the samples the scale may use when there is no reference (before a blow-up).
+
+    When the centre of mass moves on its own (scales.internal_energy_decouples), the drift is
+    that of the internal energy, on the kinetic energy relative to the centre of mass: the same
+    in every inertial frame, so a body that also translates fast cannot dilute its rotational
+    drift. The centre of mass's share is reported apart as ``translational_energy_drift``.
+    Otherwise (a spring to the world, drag, ground contact) the total energy, as one.
+    Returns the total-energy scale (for ``energy_error``)."""
+    from crosscheck.quantities import internal_energy, translational_energy
+
     reason = scales.energy_not_conserved(scene)
-    e = energy
+    total_scale, source = scales.energy_scale(scene, basis, ref)
+    if scales.internal_energy_decouples(scene):
+        e = internal_energy(scene, traj)
+        scale, source = scales.energy_scale(scene, basis, ref, internal=True)
+        what = "internal energy (relative to the centre of mass)"
+        kinetic = "max kinetic energy relative to the centre of mass"
+        _translational_energy(scene, traj, basis, translational_energy(scene, traj), out,
+                              reason)
+    else:
+        e, scale, what, kinetic = energy, total_scale, "total energy", "max kinetic energy"
     if scale <= 0:
         out.add("energy_drift", None, meaningful=False,
                 note="no energy scale: " + _still(out) + " and there is no gravity")
-        return 0.0
+        return total_scale
     drift = np.abs(e - e[0]) / scale
-    note = f"scale S_E = {scale:.6g} J (max kinetic energy, {source})"
+    note = f"{what}; scale S_E = {scale:.6g} J ({kinetic}, {source})"
     if reason:
         note = f"not conserved: {reason}; " + note
     out.add("energy_drift", float(np.max(drift)), meaningful=reason is None, note=note)
     out.add_series("energy_drift", traj.t, drift)
-    return scale
+    return total_scale
+
+
+def _translational_energy(scene: Scene, traj: Trajectory, basis: Trajectory,
+                          e: np.ndarray, out: MetricSet, reason: str | None):
+    """``translational_energy_drift = max_t |E_c(t) - E_c(0)| / S_c``: the centre of mass's
+    energy (1/2 M v_c^2 - M g . c - F_tot . c), on the kinetic energy the centre of mass gained
+    (1/2 M max_t |v_c(t) - v_c(0)|^2, at least E_floor). Reported when a uniform force (gravity,
+    constant loads) moves the centre of mass. Energy is not Galilean-invariant: a boost V adds
+    V . (M delta v_c - F_tot t), the run's error in the centre of mass's momentum times V, so
+    this figure is frame-invariant only when that momentum is right (as every engine's is for a
+    body without an offset centre of mass)."""
+    from crosscheck.quantities import com_velocity
+
+    if scene.effects.gravity is None and not any(
+            np.any(np.asarray(ld.force) != 0) for ld in scene.effects.loads):
+        # No uniform force: the centre of mass moves uniformly and its energy depends on the
+        # frame alone; linear_momentum_drift is the frame-invariant check of its motion.
+        return
+    vc = com_velocity(scene, basis)
+    gained = 0.5 * scene.masses.sum() * float(np.max(np.sum((vc - vc[:1]) ** 2, axis=-1)))
+    scale = max(gained, scales.energy_floor(scene))
+    if scale <= 0:
+        out.add("translational_energy_drift", None, meaningful=False,
+                note="the centre of mass moves uniformly: its energy has no frame-invariant "
+                     "scale (its momentum drift is linear_momentum_drift)")
+        return
+    drift = np.abs(e - e[0]) / scale
+    note = (f"the centre of mass's energy; scale {scale:.6g} J (the kinetic energy it gained, "
+            "at least E_floor)")
+    if reason:
+        note = f"not conserved: {reason}; " + note
+    out.add("translational_energy_drift", float(np.max(drift)), meaningful=reason is None,
+            note=note)
 
 
 def linear_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
@@ -196,7 +246,10 @@ def angular_momentum_metric(scene: Scene, traj: Trajectory, out: MetricSet,
 
 
 def _still(out: MetricSet) -> str:
-    return "nothing moves" if out.blowup_time is None else "nothing moves before the blow-up"
+    # Drift scales are taken relative to the system's centre of mass (frame-invariant): a body
+    # that only translates has nothing to drift by them.
+    return ("nothing moves relative to the centre of mass" if out.blowup_time is None
+            else "nothing moves relative to the centre of mass before the blow-up")
 
 
 # -- against the reference -------------------------------------------------------------------------

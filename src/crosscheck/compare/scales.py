@@ -90,16 +90,33 @@ def _omega_norm(scene: Scene, traj: Trajectory) -> np.ndarray:
     return np.linalg.norm(traj.omega, axis=-1)
 
 
-def energy_scale(scene: Scene, traj: Trajectory, reference: Trajectory | None = None
-                 ) -> tuple[float, str]:
-    """``S_E`` and where it came from ("reference" or "run"); see the module docstring."""
-    from crosscheck.quantities import kinetic_energy
+def energy_scale(scene: Scene, traj: Trajectory, reference: Trajectory | None = None,
+                 internal: bool = False) -> tuple[float, str]:
+    """``S_E`` and where it came from ("reference" or "run"); see the module docstring.
+
+    ``internal``: the kinetic energy relative to the system's centre of mass (the yardstick of
+    the internal energy, the same in every inertial frame)."""
+    from crosscheck.quantities import com_velocity, kinetic_energy
 
     source, basis = "run", traj
     if reference is not None and _has_full_state(reference):
         source, basis = "reference", reference
-    t_max = float(np.max(kinetic_energy(scene, basis))) if len(basis.t) else 0.0
-    return max(t_max, energy_floor(scene)), source
+    if not len(basis.t):
+        return energy_floor(scene), source
+    kinetic = kinetic_energy(scene, basis)
+    if internal:
+        vc = com_velocity(scene, basis)
+        kinetic = kinetic - 0.5 * scene.masses.sum() * np.einsum("td,td->t", vc, vc)
+    return max(float(np.max(kinetic)), energy_floor(scene)), source
+
+
+def internal_energy_decouples(scene: Scene) -> bool:
+    """True when the centre of mass moves independently of everything else (no spring anchored
+    to the world, no drag, no ground contact): then the internal energy is conserved on its own
+    and is what ``energy_drift`` measures."""
+    fx = scene.effects
+    return not (any(s.body_b is None for s in fx.springs) or fx.drag or fx.fluid
+                or (fx.contact and scene.ground is not None))
 
 
 def _has_full_state(traj: Trajectory) -> bool:
@@ -111,13 +128,21 @@ def _has_full_state(traj: Trajectory) -> bool:
 
 
 def momentum_scale(scene: Scene, traj: Trajectory) -> float:
-    """``S_P = max_t sum_i m_i (|v_i| + |w_i| r_i)``."""
-    speed = np.linalg.norm(traj.vel, axis=-1) + _omega_norm(scene, traj) * body_radii(scene)
-    return float(np.max(speed @ scene.masses)) if len(traj.t) else 0.0
+    """``S_P = max_t [sum_i m_i (|v_i - v_c| + |w_i| r_i) + M |v_c(t) - v_c(0)|]``: the same in
+    every inertial frame (a uniform velocity added to every body changes nothing)."""
+    if not len(traj.t):
+        return 0.0
+    from crosscheck.quantities import com_velocity
+
+    vc = com_velocity(scene, traj)
+    relative = np.linalg.norm(traj.vel - vc[:, None], axis=-1)
+    speed = relative + _omega_norm(scene, traj) * body_radii(scene)
+    gained = scene.masses.sum() * np.linalg.norm(vc - vc[:1], axis=-1)
+    return float(np.max(speed @ scene.masses + gained))
 
 
 def angular_momentum_scale(scene: Scene, traj: Trajectory) -> float:
-    """``S_L = max_t sum_i (|I_i w_i| + m_i |x_i - c| |v_i - v_c| + m_i r_i |v_i|)``."""
+    """``S_L = max_t sum_i (|I_i w_i| + m_i |x_i - c| |v_i - v_c| + m_i r_i |v_i - v_c|)``."""
     if not len(traj.t):
         return 0.0
     m = scene.masses
@@ -131,9 +156,11 @@ def angular_momentum_scale(scene: Scene, traj: Trajectory) -> float:
 
         spin = np.linalg.norm(np.einsum("tnij,tnj->tni", world_inertia(scene, traj), traj.omega),
                               axis=-1)
-    orbital = (np.linalg.norm(traj.com - c[:, None], axis=-1)
-               * np.linalg.norm(traj.vel - vc[:, None], axis=-1))
-    rim = body_radii(scene) * np.linalg.norm(traj.vel, axis=-1)
+    relative = np.linalg.norm(traj.vel - vc[:, None], axis=-1)
+    orbital = np.linalg.norm(traj.com - c[:, None], axis=-1) * relative
+    # The rim term with the velocity relative to the centre of mass: a uniform velocity added to
+    # every body must not change the yardstick (it changes nothing about the centre of mass).
+    rim = body_radii(scene) * relative
     return float(np.max(spin.sum(1) + orbital @ m + rim @ m))
 
 
