@@ -62,7 +62,7 @@ def values(ms):
 
 def test_explicit_euler_free_fall_errors_match_closed_form():
     scene = load_case_text(fall_case())
-    T, h, m = 1.0, 0.01, 2.0
+    T, h = 1.0, 0.01
     ref = run(scene, "exact")
     ms = compute_metrics(scene, run(scene, "euler"), ref)
     v = values(ms)
