@@ -642,3 +642,61 @@ stiffness = {stiffness}
     for _ in range(300):
         mujoco.mj_step(sim.model, sim.data)
     assert np.all(np.isfinite(sim.data.qpos)) and sim.data.time < 1.0
+
+
+# -- MuJoCo's compiler limits are "not applicable", never an error (issue 13 point 4) --------------
+def test_a_mass_below_mjminval_is_not_applicable_with_the_reason():
+    tiny = load_case_text(_TINY.replace("{mass}", "1e-16"))
+    reason = ENGINE.not_applicable(tiny, "euler")
+    assert reason is not None and "mass 1e-16 kg is below MuJoCo's mjMINVAL" in reason
+    assert ENGINE.not_applicable(load_case_text(_TINY.replace("{mass}", "1e-3")), "euler") is None
+
+
+def test_a_flat_plate_at_the_triangle_limit_runs_balanced():
+    # A 1000 kg plate of zero thickness: I_zz = I_xx + I_yy exactly in theory; the
+    # eigen-decomposition of the rotated tensor misses by round-off, which at moments of order
+    # 1e2 kg m^2 is far beyond MuJoCo's absolute slack of ~1e-15 (its compiler then refuses the
+    # model). The adapter balances C = A + B and the run matches the tensor to round-off.
+    from crosscheck.engines.mujoco import principal_moments
+
+    plate = load_case_text(_PLATE)
+    inertia = plate.bodies[0].inertia
+    raw = np.linalg.eigvalsh(inertia)
+    balanced, _ = principal_moments(inertia)
+    assert balanced[2] == balanced[0] + balanced[1]
+    assert abs(balanced[2] - raw[2]) <= 1e-12 * raw[2]
+    assert ENGINE.not_applicable(plate, "rk4") is None
+    traj = ENGINE.run(plate, "rk4", 1e-3)
+    assert traj.failure is None
+    assert traj.meta["effective"]["bodies"][0]["inertia_rel_error"] < 1e-12
+
+
+_TINY = """
+[case]
+name = "tiny"
+dimension = 3
+[run]
+duration = 0.01
+dt = 1e-3
+[[bodies]]
+name = "speck"
+shape = { sphere = { radius = 1e-3 } }
+mass = {mass}
+position = [0.0, 0.0, 0.0]
+"""
+
+_PLATE = """
+[case]
+name = "plate"
+dimension = 3
+[run]
+duration = 0.1
+dt = 1e-3
+[[bodies]]
+name = "plate"
+shape = { box = { size = [1.3, 0.7, 1e-12] } }
+mass = 1000.0
+position = [0.0, 0.0, 0.0]
+orientation = { axis = [1, 2, 3], angle = 0.9 }
+angular_velocity = [0.3, 2.0, -1.0]
+"""

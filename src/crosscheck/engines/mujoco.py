@@ -166,6 +166,49 @@ def engine_options(scene: Scene) -> dict[str, Any]:
     return {key: out.get(key, default) for key, (_, default) in OPTIONS.items()}
 
 
+# MuJoCo's compiler refuses a moving body whose mass or a principal moment is below mjMINVAL
+# (1e-15), and principal moments with A + B < C beyond an absolute slack of about mjMINVAL
+# (measured: 1e-16 over passes, 1e-12 over fails). A flat plate sits exactly at A + B = C, and the
+# eigen-decomposition lands there only to round-off, which for moments of order 1 kg m^2 and up
+# exceeds that absolute slack.
+MJ_MINVAL = 1e-15
+# A + B may fall short of C by this much relative to C (a few ulps of the decomposition) and is
+# then balanced by lowering C to A + B; beyond it the inertia is not MuJoCo's to take.
+TRIANGLE_ROUNDOFF = 1e-12
+
+
+def principal_moments(inertia) -> tuple[np.ndarray, np.ndarray]:
+    """(ascending principal moments, axes as a proper rotation), with a moment tensor at the
+    triangle-inequality limit balanced to exactly A + B = C when round-off put it past."""
+    moments, axes = np.linalg.eigh(np.asarray(inertia, float))
+    short = moments[2] - (moments[0] + moments[1])
+    if 0 < short <= TRIANGLE_ROUNDOFF * moments[2]:
+        moments = moments.copy()
+        moments[2] = moments[0] + moments[1]
+    return moments, axes
+
+
+def mujoco_limits(scene: Scene) -> str | None:
+    """Why MuJoCo cannot take this scene's bodies (its documented compiler limits), or None."""
+    for body in scene.bodies:
+        if body.mass < MJ_MINVAL:
+            return (f"body {body.name!r}: mass {body.mass:g} kg is below MuJoCo's mjMINVAL "
+                    f"({MJ_MINVAL:g}), which its compiler refuses for a moving body")
+        if scene.dimension == 3:
+            moments, _ = principal_moments(body.inertia)
+        else:
+            moments = np.full(3, float(body.moment))
+        if moments[0] < MJ_MINVAL:
+            return (f"body {body.name!r}: principal moment {moments[0]:g} kg m^2 is below "
+                    f"MuJoCo's mjMINVAL ({MJ_MINVAL:g})")
+        short = moments[2] - (moments[0] + moments[1])
+        if short > TRIANGLE_ROUNDOFF * moments[2]:
+            return (f"body {body.name!r}: principal moments {moments.tolist()} break the "
+                    f"triangle inequality A + B >= C by {short:.3g} kg m^2, which MuJoCo's "
+                    "compiler refuses")
+    return None
+
+
 @dataclass
 class _BodyMap:
     """How one scene body sits in the MuJoCo model."""
@@ -214,7 +257,7 @@ class MujocoModel:
     # -- model ----------------------------------------------------------------------------
     def _frame(self, body) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(t, q_P, inertial quaternion in the MuJoCo frame, principal moments) of a 3D body."""
-        moments, axes = np.linalg.eigh(np.asarray(body.inertia, float))
+        moments, axes = principal_moments(body.inertia)
         if np.linalg.det(axes) < 0:  # a proper rotation: flip one principal axis
             axes[:, 2] *= -1.0
         q_axes = matrix_to_quat(axes)
@@ -653,7 +696,7 @@ class MujocoEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if mujoco is None:  # pragma: no cover
             return "the mujoco package is not installed"
-        return super().not_applicable(scene, integrator)
+        return super().not_applicable(scene, integrator) or mujoco_limits(scene)
 
     def build(self, scene: Scene, integrator: str, dt: float) -> MujocoModel:
         """The compiled model with the scene's initial state set (also used by benchmarks)."""
