@@ -529,3 +529,26 @@ def test_pair_types_are_frozen():
         m.friction = 1.0
     with pytest.raises(dataclasses.FrozenInstanceError):
         ContactPair("a", "b", "body-body", m).a = "c"
+
+
+# -- the examples of docs/cases.md ----------------------------------------------------------------
+def test_the_contact_examples_in_the_docs_load_with_the_documented_values():
+    markdown = (REPO / "docs" / "cases.md").read_text()
+    blocks = [p.split("```", 1)[0] for p in markdown.split("```toml\n")[1:]]
+    (statics,) = [b for b in blocks if b.startswith("[[statics]]")]
+    (contact,) = [b for b in blocks if "[[contact_pairs]]" in b]
+    head = ('[case]\nname = "docs"\ndimension = 3\n[run]\nduration = 1.0\ndt = 0.001\n'
+            '[[bodies]]\nname = "ball"\nshape = { sphere = { radius = 0.1 } }\nmass = 1.0\n'
+            'position = [0.0, 0.0, 1.0]\nmaterial = "rubber"\n'
+            '[[bodies]]\nname = "marker"\nshape = { sphere = { radius = 0.1 } }\n'
+            'mass = 1.0\nposition = [1.0, 0.0, 1.0]\n')
+    s = load_case_text(head + statics + contact, name="docs/cases.md")
+    (ramp,) = s.statics
+    lo, hi = ramp.placed().bounding_box()
+    assert hi[2] - lo[2] == pytest.approx(4.0 * math.sin(0.5236) + 0.1 * math.cos(0.5236))
+    pairs = {(p.a, p.b): p.material for p in s.contact_pairs()}
+    assert pairs[("ball", "ramp")].friction == 0.25
+    assert pairs[("ball", "marker")].collide is False
+    # the worked example: rubber on the documented ground gives sqrt(0.9 x 0.1) and max(0.8, 0.2)
+    assert pairs[("ball", "ground")].friction == pytest.approx(0.3)
+    assert pairs[("ball", "ground")].restitution == 0.8
