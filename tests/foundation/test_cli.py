@@ -179,7 +179,8 @@ def test_show_json_is_the_scene(capsys, tmp_path):
     (ball,) = data["bodies"]
     assert ball["mass"] == 1.0 and ball["shape"] == {"radius": 0.1, "kind": "sphere"}
     assert ball["derived"]["principal_moments"] == pytest.approx([0.004] * 3, rel=1e-14)
-    assert ball["material"] == {"name": "default", "friction": 0.5, "restitution": 0.0}
+    assert ball["material"] == {"name": "default", "friction": 0.5, "restitution": 0.0,
+                                "rolling_friction": 0.0, "torsional_friction": 0.0}
 
 
 def test_show_prints_user_text_literally(capsys, tmp_path):

@@ -108,6 +108,46 @@ BASE_2D = {
     ],
 }
 
+BASE_CONTACT = {
+    "case": {"name": "contact", "dimension": 3},
+    "run": {"duration": 1.0, "dt": 0.01},
+    "effects": {"gravity": [0.0, 0.0, -9.81], "contact": True},
+    "materials": {"rubber": {"friction": 0.9, "restitution": 0.8, "rolling_friction": 0.001,
+                             "torsional_friction": 0.002}},
+    "ground": {"material": {"friction": 0.2}},
+    "bodies": [
+        {"name": "a", "shape": {"sphere": {"radius": 0.1}}, "mass": 1.0,
+         "position": [0.0, 0.0, 1.0], "material": "rubber"},
+        {"name": "b", "shape": {"box": {"size": [0.1, 0.2, 0.3]}}, "mass": 1.0,
+         "position": [1.0, 0.0, 1.0], "material": {"restitution": 0.5}},
+    ],
+    "statics": [{"name": "s", "shape": {"mesh": {"file": "../meshes/l_bracket.obj"}},
+                 "position": [0.0, 2.0, 0.0], "orientation": {"axis": [0.0, 0.0, 1.0],
+                                                             "angle": 0.5},
+                 "material": "rubber"},
+                {"name": "t", "shape": {"capsule": {"radius": 0.1, "length": 1.0}},
+                 "position": [0.0, -2.0, 0.0]}],
+    "contact_pairs": [{"a": "a", "b": "s", "friction": 0.3, "torsional_friction": 0.0},
+                      {"a": "b", "b": "a", "collide": False},
+                      {"a": "ground", "b": "b", "restitution": 1.0}],
+}
+
+BASE_CONTACT_2D = {
+    "case": {"name": "contact-2d", "dimension": 2},
+    "run": {"duration": 1.0, "dt": 0.01},
+    "effects": {"contact": True},
+    "materials": {"wood": {"friction": 0.6, "rolling_friction": 0.01}},
+    "ground": {"normal": [0.0, 1.0], "material": "wood"},
+    "bodies": [{"name": "p", "shape": {"circle": {"radius": 0.1}}, "mass": 1.0,
+                "position": [0.0, 1.0]}],
+    "statics": [{"name": "w", "shape": {"polygon": {"vertices": [[0.0, 0.0], [1.0, 0.0],
+                                                                  [0.0, 1.0]]}},
+                 "position": [2.0, 0.0], "orientation": 0.2, "material": {"friction": 0.1}}],
+    "contact_pairs": [{"a": "w", "b": "p", "rolling_friction": 0.0}],
+}
+
+BASES = [BASE_3D, BASE_2D, BASE_MESH, BASE_CONTACT, BASE_CONTACT_2D]
+
 # keys that mean something somewhere in the format, so insertions make structurally plausible
 # files (density next to mass, anchor next to b, ...), plus a few that mean nothing
 KNOWN_KEYS = sorted({
@@ -120,7 +160,8 @@ KNOWN_KEYS = sorted({
     "vertices", "mass", "density", "inertia", "com", "position", "orientation", "axis", "angle",
     "velocity", "angular_velocity", "reference", "kind", "solution", "params", "engine",
     "integrator", "table", "tolerances", "default", "rk4", "mujoco", "mujoco.euler", "x.y",
-    "engine_options", "pybullet", "inhouse", "pymunk", "masss", "",
+    "engine_options", "pybullet", "inhouse", "pymunk", "masss", "", "statics",
+    "contact_pairs", "rolling_friction", "torsional_friction", "collide",
 })
 
 scalars = st.one_of(
@@ -176,7 +217,7 @@ def _at(tree, path):
 
 @st.composite
 def mutated_cases(draw):
-    case = copy.deepcopy(draw(st.sampled_from([BASE_3D, BASE_2D, BASE_MESH])))
+    case = copy.deepcopy(draw(st.sampled_from(BASES)))
     for _ in range(draw(st.integers(1, 4))):
         op = draw(st.sampled_from(["delete", "replace", "replace", "insert", "truncate",
                                    "empty", "number", "number"]))
@@ -248,6 +289,16 @@ def _check_valid(scene: Scene) -> None:
     assert finite_plain(scene.reference.params) and finite_plain(scene.engine_options)
     if scene.ground is not None:
         assert abs(np.linalg.norm(scene.ground.normal) - 1.0) < 1e-12
+    for st_ in scene.statics:
+        assert st_.position.shape == (scene.dimension,)
+        assert np.all(np.isfinite(st_.position)) and np.all(np.isfinite(st_.orientation))
+    # every pair value an engine would be given is a finite, admissible number
+    names = set(scene.body_names) | set(scene.static_names) | {"ground"}
+    for p in scene.contact_pairs():
+        m = p.material
+        values = (m.friction, m.restitution, m.rolling_friction, m.torsional_friction)
+        assert all(math.isfinite(v) and v >= 0 for v in values) and m.restitution <= 1, p
+        assert p.a in scene.body_names and p.b in names and p.a != p.b
 
 
 def _load_text(text: str) -> None:
@@ -260,7 +311,7 @@ def _load_text(text: str) -> None:
 
 
 def test_the_starting_points_are_valid():
-    for base in (BASE_3D, BASE_2D, BASE_MESH):
+    for base in BASES:
         _check_valid(load_case_text(to_toml(base), base_dir=BASE_DIR))
 
 
@@ -271,7 +322,7 @@ def test_mutated_case_files_raise_only_case_errors(case):
 
 
 @FUZZ
-@given(st.sampled_from([BASE_3D, BASE_2D]), st.data())
+@given(st.sampled_from([BASE_3D, BASE_2D, BASE_CONTACT, BASE_CONTACT_2D]), st.data())
 def test_cut_and_spliced_toml_raises_only_case_errors(base, data):
     text = to_toml(base)
     start = data.draw(st.integers(0, len(text)))

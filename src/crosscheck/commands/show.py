@@ -13,8 +13,9 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from crosscheck.scene.contact import RULES
 from crosscheck.scene.loader import load_case
-from crosscheck.scene.model import Body, Scene
+from crosscheck.scene.model import Body, Scene, Static
 
 ORDER = 2  # its place in crosscheck --help
 
@@ -61,10 +62,20 @@ def body_summary(body: Body) -> dict[str, Any]:
     return out
 
 
+def static_summary(static: Static) -> dict[str, Any]:
+    """Where the static ends up: its tight world bounding box, to check the placement by."""
+    lo, hi = static.placed().bounding_box()
+    return {"bounding_box_world": [np.asarray(lo).tolist(), np.asarray(hi).tolist()]}
+
+
 def scene_as_json(scene: Scene) -> dict[str, Any]:
     data = to_plain(scene)
     for b, body in zip(data["bodies"], scene.bodies, strict=True):
         b["derived"] = body_summary(body)
+    for s, static in zip(data["statics"], scene.statics, strict=True):
+        s["derived"] = static_summary(static)
+    # The values every engine will be asked to use, pair by pair (the pair rule applied).
+    data["contact_pairs"] = to_plain(list(scene.contact_pairs()))
     return data
 
 
@@ -98,6 +109,7 @@ def run(args) -> int:
                       _vec(d["com_world"]), _vec(moments), _vec(body.position),
                       _vec(body.velocity), _vec(body.angular_velocity))
     console.print(table)
+    _print_contact(console, scene)
     ref = scene.reference
     console.print(f"reference: {ref.kind}"
                   + "".join(f" {k}={escape(str(v))}" for k, v in (("solution", ref.solution),
@@ -111,3 +123,43 @@ def run(args) -> int:
 
 def _vec(v) -> str:
     return "[" + ", ".join(f"{x:.4g}" for x in np.atleast_1d(np.asarray(v, float))) + "]"
+
+
+def _print_contact(console: Console, scene: Scene) -> None:
+    """The ground, the statics and, in a contact case, the values of every pair."""
+    if scene.ground is not None:
+        g = scene.ground
+        console.print(f"ground: normal {_vec(g.normal)}, offset {g.offset} m, "
+                      f"material {escape(g.material.name)}")
+    if scene.statics:
+        table = Table(title="statics")
+        for col in ("name", "shape", "position", "orientation", "material",
+                    "world bounding box"):
+            table.add_column(col, overflow="fold")  # folded, never cut: names are paths
+        for st in scene.statics:
+            lo, hi = static_summary(st)["bounding_box_world"]
+            table.add_row(escape(st.name), st.shape.kind, _vec(st.position),
+                          _vec(st.orientation), escape(st.material.name),
+                          f"{_vec(lo)} .. {_vec(hi)}")
+        console.print(table)
+    pairs = scene.contact_pairs()
+    if not pairs:
+        return
+    # One line per pair rather than a table: nothing is cut off at 80 columns.
+    rules = {k: v for k, v in RULES.items()
+             if scene.dimension == 3 or k != "torsional_friction"}  # no spin about it in 2D
+    console.print(escape("contact pairs, the values every engine is given (rule: "
+                         + ", ".join(f"{k} {v}" for k, v in rules.items())
+                         + "; a [[contact_pairs]] entry overrides it):"))
+    for p in pairs:
+        console.print(escape(f"  {p.a} - {p.b}: {_pair_values(p.material, scene.dimension)}"))
+
+
+def _pair_values(m, dimension: int) -> str:
+    if not m.collide:
+        return f"no contact (collide = false, {m.source})"
+    keys = [("friction", ""), ("restitution", ""), ("rolling_friction", " m")]
+    if dimension == 3:
+        keys.append(("torsional_friction", " m"))
+    return ", ".join(f"{k} {getattr(m, k):.6g}{unit}"
+                     + (f" ({m.source})" if k in m.overridden else "") for k, unit in keys)

@@ -202,18 +202,24 @@ def _first_sample(traj: Trajectory) -> Trajectory | None:
 
 
 # -- what the scene conserves --------------------------------------------------------------------
-def _used_materials(scene: Scene):
-    mats = [b.material for b in scene.bodies]
-    if scene.ground is not None:
-        mats.append(scene.ground.material)
-    return mats
+def _dissipative_contact(scene: Scene) -> bool:
+    """Whether a pair that touches has restitution below 1 or any friction: the pair values, not
+    the materials, decide (a pair of e = 1 and e = 0 surfaces bounces with e = 1)."""
+    return any(m.collide and (m.restitution < 1.0 or m.friction > 0.0 or m.rolling_friction > 0.0
+                              or m.torsional_friction > 0.0)
+               for m in (p.material for p in scene.contact_pairs()))
+
+
+def _fixed_contact(scene: Scene) -> bool:
+    """Contact with the ground or a static: an external force on the bodies."""
+    return scene.effects.contact and (scene.ground is not None or bool(scene.statics))
 
 
 def energy_not_conserved(scene: Scene) -> str | None:
     """Why total mechanical energy is not conserved in this scene, or None if it is.
 
     Energy is conserved unless the scene has drag, a damped spring, a constant torque on a 3D body
-    (no potential), or contact with a material that is not perfectly elastic and frictionless.
+    (no potential), or contact in a pair that is not perfectly elastic and frictionless.
     """
     fx = scene.effects
     if fx.fluid:
@@ -224,7 +230,7 @@ def energy_not_conserved(scene: Scene) -> str | None:
         return "a spring is damped"
     if scene.dimension == 3 and any(np.any(np.asarray(ld.torque) != 0) for ld in fx.loads):
         return "a constant torque on a 3D body has no potential"
-    if fx.contact and any(m.restitution < 1.0 or m.friction > 0.0 for m in _used_materials(scene)):
+    if fx.contact and _dissipative_contact(scene):
         return "contact with restitution < 1 or friction dissipates energy"
     return None
 
@@ -244,8 +250,8 @@ def linear_momentum_directions(scene: Scene) -> tuple[np.ndarray | None, str | N
         return None, "the scene has linear drag (an external force)"
     if any(s.body_b is None for s in fx.springs):
         return None, "a spring is anchored to the world (an external force)"
-    if fx.contact and scene.ground is not None:
-        return None, "contact with the ground is an external force"
+    if _fixed_contact(scene):
+        return None, "contact with the ground or a static is an external force"
     fixed = []
     if fx.gravity is not None and np.linalg.norm(fx.gravity) > 0:
         fixed.append(np.asarray(fx.gravity, float))
@@ -276,8 +282,8 @@ def angular_momentum_not_conserved(scene: Scene) -> str | None:
         return "the scene has drag"
     if any(s.body_b is None for s in fx.springs):
         return "a spring is anchored to the world (an external torque)"
-    if fx.contact and scene.ground is not None:
-        return "contact with the ground is an external force"
+    if _fixed_contact(scene):
+        return "contact with the ground or a static is an external force"
     if any(np.any(np.asarray(ld.torque) != 0) for ld in fx.loads):
         return "a constant torque is applied"
     if len(scene.bodies) > 1 and any(np.any(np.asarray(ld.force) != 0) for ld in fx.loads):

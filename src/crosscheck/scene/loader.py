@@ -20,6 +20,13 @@ from crosscheck.errors import CaseError
 from crosscheck.names import FINE_STEP_ONLY, INTEGRATOR_NAMES, all_integrator_names
 from crosscheck.rotations import axis_angle_to_quat
 from crosscheck.scene import massprops
+from crosscheck.scene.contact_fields import (
+    check_contact_sections,
+    check_reserved_names,
+    material_ref,
+    parse_materials,
+    parse_pair_overrides,
+)
 from crosscheck.scene.fields import Fields, check_number, check_vector, one_of
 from crosscheck.scene.model import (
     ENGINE_NAMES,
@@ -33,11 +40,11 @@ from crosscheck.scene.model import (
     RunSettings,
     Scene,
     Spring,
+    Static,
     Tolerance,
 )
 from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
 
-DEFAULT_MATERIAL = Material(name="default", friction=0.5, restitution=0.0)
 REFERENCE_KINDS = ("analytic", "table", "fine-step", "engine", "none")
 QUATERNION_UNIT_TOLERANCE = 1e-6  # |q| may differ from 1 by this much (then it is normalised)
 
@@ -114,7 +121,7 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     case.done()
 
     run = _run(top.sub("run"), unchecked, fluid=top.has("fluid"))
-    materials = _materials(top.sub("materials", {}))
+    materials = parse_materials(top.sub("materials", {}), dimension)
     has_fluid = top.has("fluid")
     fluid = None
     if has_fluid:
@@ -131,6 +138,19 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
 
     effects = _effects(top.sub("effects", {}), dimension, names, has_fluid)
     ground = _ground(top.sub("ground"), dimension, materials) if top.has("ground") else None
+    check_contact_sections(top, effects.contact, has_fluid)
+    check_reserved_names(names, file, effects.contact)
+    statics = tuple(_static(s, dimension, materials, base_dir)
+                    for s in top.table_list("statics", []))
+    static_names = [s.name for s in statics]
+    for i, n in enumerate(static_names):
+        if n == "ground":
+            raise CaseError(file, f"statics[{i}].name",
+                            "a name other than 'ground' (it names the [ground] plane)", n)
+        if n in names or static_names.index(n) != i:
+            raise CaseError(file, f"statics[{i}].name", "a name no body or other static has", n)
+    pair_overrides = parse_pair_overrides(top.table_list("contact_pairs", []), names,
+                                          static_names, ground is not None, dimension)
     reference = _reference(top.sub("reference", {}), unchecked)
     tolerances = _tolerances(top.sub("tolerances", {}), unchecked)
     engine_options = _engine_options(top.sub("engine_options", {}))
@@ -139,8 +159,8 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     return Scene(
         name=name, description=description, tags=tags, dimension=dimension, run=run,
         effects=effects, bodies=bodies, ground=ground, materials=materials, reference=reference,
-        tolerances=tolerances, engine_options=engine_options, fluid=fluid, source=file,
-        source_sha256=digest,
+        tolerances=tolerances, engine_options=engine_options, fluid=fluid, statics=statics,
+        pair_overrides=pair_overrides, source=file, source_sha256=digest,
     )
 
 
@@ -197,30 +217,6 @@ def _run(f: Fields, unchecked: frozenset[str], fluid: bool = False) -> RunSettin
     f.done()
     return RunSettings(duration=duration, dt=dt, sample_every=sample_every, engines=engines,
                        integrators=integrators, timeout=timeout)
-
-
-def _materials(f: Fields) -> dict[str, Material]:
-    out = {"default": DEFAULT_MATERIAL}
-    for key in list(f.table):
-        m = f.sub(key)
-        out[key] = Material(
-            name=key,
-            friction=m.number("friction", DEFAULT_MATERIAL.friction, nonnegative=True),
-            restitution=m.number("restitution", DEFAULT_MATERIAL.restitution, nonnegative=True),
-        )
-        if out[key].restitution > 1:
-            raise m.error("restitution", "a coefficient between 0 and 1", out[key].restitution)
-        m.done()
-    f.done()
-    return out
-
-
-def _material_ref(f: Fields, materials: dict[str, Material]) -> Material:
-    name = f.string("material", "default")
-    if name not in materials:
-        raise f.error("material", f"a material defined under [materials] ({sorted(materials)})",
-                      name)
-    return materials[name]
 
 
 # -- bodies ---------------------------------------------------------------------------------------
@@ -360,22 +356,43 @@ def _body(f: Fields, dimension: int, materials: dict[str, Material], base_dir: P
     else:
         inertia = np.array([[float(props.moment)]])
 
-    position = f.vector("position", dimension, unit="m")
+    position, orientation = _pose(f, dimension)
     if dimension == 3:
-        orientation = _orientation(f)
         velocity = f.vector("velocity", 3, [0, 0, 0], unit="m/s")
         angular_velocity = f.vector("angular_velocity", 3, [0, 0, 0], unit="rad/s")
     else:
-        orientation = np.array([f.number("orientation", 0.0, unit="rad")])
         velocity = f.vector("velocity", 2, [0, 0], unit="m/s")
         angular_velocity = np.array([f.number("angular_velocity", 0.0, unit="rad/s")])
-    material = _material_ref(f, materials)
+    material = material_ref(f, materials, dimension)
     f.done()
-    for arr in (com, inertia, orientation, angular_velocity):
+    for arr in (com, inertia, angular_velocity):
         arr.setflags(write=False)
     return Body(name=name, shape=shape, mass=mass, com=com, inertia=inertia, position=position,
                 orientation=orientation, velocity=velocity, angular_velocity=angular_velocity,
                 material=material, mass_source=mass_source, inertia_source=inertia_source)
+
+
+def _pose(f: Fields, dimension: int) -> tuple[np.ndarray, np.ndarray]:
+    """``position`` and ``orientation`` of a body frame (bodies and statics alike)."""
+    position = f.vector("position", dimension, unit="m")
+    if dimension == 3:
+        orientation = _orientation(f)
+    else:
+        orientation = np.array([f.number("orientation", 0.0, unit="rad")])
+    orientation.setflags(write=False)
+    return position, orientation
+
+
+def _static(f: Fields, dimension: int, materials: dict[str, Material], base_dir: Path) -> Static:
+    """Fixed geometry: a shape of the body vocabulary placed like a body frame; no mass, no
+    velocity (the parser of body shapes, so meshes and polygons are checked the same way)."""
+    name = f.string("name")
+    shape = _shape(f, dimension, base_dir)
+    position, orientation = _pose(f, dimension)
+    material = material_ref(f, materials, dimension)
+    f.done()
+    return Static(name=name, shape=shape, position=position, orientation=orientation,
+                  material=material)
 
 
 def _inertia(f: Fields, dimension: int) -> np.ndarray:
@@ -510,7 +527,7 @@ def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground
     unit = unit / np.linalg.norm(unit)
     unit.setflags(write=False)
     ground = Ground(normal=unit, offset=f.number("offset", 0.0, unit="m"),
-                    material=_material_ref(f, materials))
+                    material=material_ref(f, materials, len(normal)))
     f.done()
     return ground
 

@@ -30,6 +30,7 @@ from crosscheck.scene.shapes import (  # noqa: F401
     Circle,
     Cylinder,
     Mesh,
+    Placed,
     Polygon,
     Shape,
     Sphere,
@@ -40,9 +41,15 @@ ENGINE_NAMES = ("inhouse", "mujoco", "pybullet", "pymunk")
 
 @dataclass(frozen=True)
 class Material:
-    name: str
-    friction: float = 0.5
-    restitution: float = 0.0
+    """What a surface is made of. Engines never see these values directly: every pair of surfaces
+    that can touch gets one set of pair values from :func:`crosscheck.scene.contact.pair_material`
+    (docs/cases.md, "Contact")."""
+
+    name: str  # the [materials] name, or the field path of an inline table (bodies[0].material)
+    friction: float = 0.5  # Coulomb coefficient
+    restitution: float = 0.0  # coefficient of restitution, in [0, 1]
+    rolling_friction: float = 0.0  # m: resisting torque = rolling_friction * normal force
+    torsional_friction: float = 0.0  # m: torque about the normal = this * normal force (3D only)
 
 
 # -- bodies ---------------------------------------------------------------------------------------
@@ -173,6 +180,37 @@ class Ground:
     material: Material
 
 
+@dataclass(frozen=True)
+class Static:
+    """Fixed geometry beyond the ground plane, placed like a body's body frame: the shape in its
+    own frame, then ``position`` and ``orientation`` (the conventions of :class:`Body`)."""
+
+    name: str
+    shape: Shape
+    position: np.ndarray  # world position of the shape's frame origin
+    orientation: np.ndarray  # 3D: quaternion (w, x, y, z); 2D: array([angle])
+    material: Material
+
+    def placed(self) -> Placed:
+        """The shape at its pose, answering geometric queries in world coordinates."""
+        return Placed(self.shape, self.position, self.orientation)
+
+
+@dataclass(frozen=True)
+class PairOverride:
+    """One ``[[contact_pairs]]`` entry: explicit values for one unordered pair of names (a body,
+    a static or "ground"); a value left None falls back to the pair rule."""
+
+    index: int  # its position among the [[contact_pairs]] entries, for messages and show
+    a: str
+    b: str
+    friction: float | None = None
+    restitution: float | None = None
+    rolling_friction: float | None = None
+    torsional_friction: float | None = None
+    collide: bool = True  # false: the two never touch (a collision filter)
+
+
 # -- run, reference, tolerances -------------------------------------------------------------------
 @dataclass(frozen=True)
 class RunSettings:
@@ -250,6 +288,8 @@ class Scene:
     tolerances: dict[str, Tolerance]
     engine_options: dict[str, dict[str, Any]]  # engine -> options pinned by the case
     fluid: Any = None  # crosscheck.scene.fluid.FluidSpec, or None for rigid scenes
+    statics: tuple[Static, ...] = ()  # fixed geometry besides the ground (contact cases only)
+    pair_overrides: tuple[PairOverride, ...] = ()  # the [[contact_pairs]] entries
     source: Path | None = None  # the case file
     source_sha256: str | None = None
 
@@ -266,3 +306,20 @@ class Scene:
 
     def integrators_for(self, engine: str) -> tuple[str, ...]:
         return self.run.integrators.get(engine, ())
+
+    @property
+    def static_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.statics)
+
+    def pair_material(self, a: str, b: str):
+        """The values every engine is given for contact between a and b (a body, a static or
+        "ground"): :func:`crosscheck.scene.contact.pair_material`."""
+        from crosscheck.scene.contact import pair_material
+
+        return pair_material(self, a, b)
+
+    def contact_pairs(self):
+        """Every pair that can touch, with its values: :func:`crosscheck.scene.contact.pairs`."""
+        from crosscheck.scene.contact import pairs
+
+        return pairs(self)
