@@ -181,8 +181,8 @@ def test_the_annotated_example_in_docs_is_the_tennis_racket_case():
     for field in ("com", "inertia", "position", "orientation", "velocity", "angular_velocity"):
         np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
     # the tolerance example of the docs is valid inside a case, with the documented precedence
-    (tol_block,) = [b for b in blocks[1:] if b.startswith("[tolerances]")]
-    tol = load_case_text(blocks[0].split("[tolerances]")[0] + tol_block).tolerances
+    example = next(b for b in blocks[1:] if b.lstrip().startswith("[tolerances]"))
+    tol = load_case_text(blocks[0].split("[tolerances]")[0] + example).tolerances
     assert tol["position_error_max"].limit("pybullet", "maximal") == 1e-3
     e = tol["energy_drift"]
     assert (e.limit("mujoco", "euler"), e.limit("mujoco", "rk4"), e.limit("mujoco", "implicit"),

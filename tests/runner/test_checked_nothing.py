@@ -37,8 +37,10 @@ def test_a_run_whose_every_cell_is_not_applicable_fails_and_says_so(tmp_path, ca
 
 def test_one_runnable_cell_is_enough(tmp_path, capsys):
     case = tmp_path / "case.toml"
+    # (spinning, so the in-house cell measures something: a cell that measures nothing fails)
     case.write_text(ONLY_PYMUNK_3D.replace('engines = ["pymunk"]',
-                                           'engines = ["pymunk", "inhouse"]'))
+                                           'engines = ["pymunk", "inhouse"]')
+                    + "angular_velocity = [0.0, 0.0, 1.0]\n")
     out = tmp_path / "out"
     status = main(["run", str(case), "--out", str(out), "--workers", "1", "--progress", "none",
                    "--no-cost"])

@@ -12,6 +12,8 @@ status are decided in one place (definitions: docs/metrics.md).
 * A fluid run (a FluidRecord): :func:`fluid_metrics` (the fluid scene's own tables and
   solutions; the ``reference`` argument is unused), the blow-up the solver recorded, then
   :func:`judge`.
+* Either, when the case gives its own table (``reference.file``): its ``table_<column>_error_*``
+  metrics (:mod:`crosscheck.compare.table_metrics`) beside the others.
 
 ``Evaluation.note`` says why reference metrics may be absent; it is passed to the verdict, which
 names it when a limited metric was not computed.
@@ -24,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from crosscheck.compare.table_metrics import table_metrics
 from crosscheck.compare.verdict import judge, metric_table
 from crosscheck.reference.spec import Reference
 from crosscheck.scene.model import Scene
@@ -78,14 +81,29 @@ def _rigid(scene: Scene, traj: Trajectory, reference: Reference, engine: str,
 
     ref = reference.trajectory
     ms = compute_metrics(scene, traj, ref, extra=safe_extra)
-    verdict = judge(scene, engine, integrator,
-                    {name: m.to_dict() for name, m in ms.metrics.items()},
+    metrics = {name: m.to_dict() for name, m in ms.metrics.items()}
+    metrics.update(_plain(table_metrics(scene, traj)))  # the case's own table, if any
+    verdict = judge(scene, engine, integrator, metrics,
                     blowup_time=ms.blowup_time, blowup_reason=ms.blowup_reason,
                     missing_reason=note)
     ref_end = resample(ref, traj.t[-1:]) if ref is not None and len(traj.t) else None
     return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
                       series=ms.series, blowup_time=ms.blowup_time,
                       blowup_reason=ms.blowup_reason, note=note, reference_end=ref_end)
+
+
+def _plain(values: dict[str, float | None]) -> dict[str, dict[str, Any]]:
+    """Metric entries from plain numbers: NaN / inf become value None with ``value_text`` (JSON
+    has neither; the verdict reads the text)."""
+    metrics = {}
+    for name, value in values.items():
+        value = None if value is None else float(value)
+        entry: dict[str, Any] = {"value": value if value is not None and np.isfinite(value)
+                                 else None}
+        if value is not None and not np.isfinite(value):
+            entry["value_text"] = str(value)
+        metrics[name] = entry
+    return metrics
 
 
 def _fluid(scene: Scene, record, engine: str, integrator: str) -> Evaluation:
@@ -97,13 +115,7 @@ def _fluid(scene: Scene, record, engine: str, integrator: str) -> Evaluation:
         values = fluid_metrics(scene, record)
     except ImportError as exc:
         note = f"fluid metrics unavailable: {exc}"
-    metrics = {}
-    for name, value in values.items():
-        value = None if value is None else float(value)
-        entry = {"value": value if value is not None and np.isfinite(value) else None}
-        if value is not None and not np.isfinite(value):
-            entry["value_text"] = str(value)  # JSON has no NaN / inf; the verdict reads this
-        metrics[name] = entry
+    metrics = _plain(values)
     failure = getattr(record, "failure", None)
     blow_t = float(failure.get("time", 0.0)) if failure else None
     blow_reason = (failure or {}).get("reason")

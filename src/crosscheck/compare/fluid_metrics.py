@@ -9,8 +9,12 @@ All metrics are non-negative magnitudes, compared by the comparer as ``value <= 
   the simulated curve is delayed by ``reference.params.time_shift_T`` (default 0) for the time the
   experiment's gate took to release the column, and ``surge_front_error_unshifted`` is always
   reported beside it;
-* ``u_centreline_rms``, ``v_centreline_rms`` (table ``ghia_1982_re100``): RMS difference from
-  Ghia et al. at their interior points, as a fraction of the lid speed, from the final frame;
+* ``u_centreline_rms``, ``v_centreline_rms`` (table ``ghia_1982`` or ``ghia_1982_re<Re>``): RMS
+  difference from Ghia et al.'s table at the case's Reynolds number U L / nu (the loader refused
+  any other) at their interior points, as a fraction of the lid speed, from the final frame;
+  ``u_centreline_max``, ``v_centreline_max`` the largest difference;
+* ``table_<column>_error_max`` / ``_rms`` (``reference.file``, the case's own table): see
+  :mod:`crosscheck.compare.table_metrics`;
 * ``period_error`` (``sloshing_period``): ``|P - P_lin| / P_lin`` with ``P`` from the zero
   crossings of the surface height at the probe and ``P_lin`` from ``w^2 = g k tanh(k h)``;
 * ``area_change``, ``shape_error`` (``zalesak``): relative area change and area of the symmetric
@@ -24,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from crosscheck.reference.fluid_data import load_table, sloshing_period
+from crosscheck.compare.table_metrics import table_metrics
+from crosscheck.reference.fluid_data import ghia_reynolds, load_table, sloshing_period
 
 
 def _ref(scene: Any) -> tuple[str | None, str | None, dict]:
@@ -55,12 +60,13 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out["max_spurious_velocity"] = float(np.max(s["max_speed"]))
     elif name == "martin_moyce_1952":
         out.update(surge_front(scene, record, params))
-    elif name in ("ghia_1982_re100", "ghia_1982"):
-        out.update(cavity_centrelines(scene, record))
+    elif name is not None and name.startswith("ghia_1982"):
+        out.update(cavity_centrelines(scene, record, name))
     elif name == "sloshing_period":
         out.update(sloshing(scene, record))
     elif name == "zalesak":
         out.update(zalesak(scene, record))
+    out.update(table_metrics(scene, record))
     return out
 
 
@@ -123,10 +129,17 @@ def centreline_profiles(scene: Any, record: Any):
     return y_prof, u_prof, x_prof, v_prof
 
 
-def cavity_centrelines(scene: Any, record: Any) -> dict[str, float]:
+def cavity_reynolds(scene: Any) -> float:
+    """Re = U L / nu: lid speed, side of the (square) cavity, kinematic viscosity."""
+    spec = scene.fluid
+    return spec.lid.speed * spec.domain[0] / spec.kinematic_viscosity
+
+
+def cavity_centrelines(scene: Any, record: Any, name: str = "ghia_1982") -> dict[str, float]:
     y, u, x, v = centreline_profiles(scene, record)
-    tu = load_table("ghia_1982_re100_u")
-    tv = load_table("ghia_1982_re100_v")
+    re = ghia_reynolds(cavity_reynolds(scene), name)
+    tu = load_table(f"ghia_1982_re{re}_u")
+    tv = load_table(f"ghia_1982_re{re}_v")
     # interior points only: the wall values are imposed and would flatter the RMS
     iu = (tu["y"] > 0) & (tu["y"] < 1)
     iv = (tv["x"] > 0) & (tv["x"] < 1)

@@ -8,9 +8,11 @@ A metric with a limit for this engine and integrator (``Tolerance.limit(engine, 
   -- unless the case *expects* it: a ``blowup_time`` limit for this engine and integrator means
   "must blow up no later than this" (a stability case), and then the blow-up time alone decides
   pass or fail (a run that stays bounded fails),
+* ``fail`` when no metric at all has a value: nothing was measured, so nothing can have passed
+  (a reference that produced nothing, a run with no samples); the reason says so,
 * ``error`` when a tolerance names a metric this cell could not compute (a misspelt metric, a
   reference that failed or defines no such quantity) -- a case or harness problem, not physics,
-* ``fail`` when any limited metric exceeds its limit,
+* ``fail`` when any limited metric exceeds its limit (a NaN or infinite value exceeds any),
 * ``pass`` otherwise (including a case with no tolerances: its metrics are only reported).
 
 A limit on a metric that is not meaningful in this scene (energy drift with drag) is ignored and
@@ -103,8 +105,16 @@ def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[st
             worst = {"metric": name, "value": _numeric(entry), "limit": entry["limit"],
                      "ratio": r}
 
+    measured = [n for n, e in out.items()
+                if e.get("value") is not None or e.get("value_text")]
     if blowup_time is not None:
         status, reason = "blowup", f"blew up at t = {blowup_time:.6g} s: {blowup_reason or ''}"
+    elif not measured:
+        status = "fail"
+        reason = "no metric could be measured: " + (
+            missing_reason or "the run and its reference gave no metric with a value")
+        if missing:
+            reason += f"; metric(s) with a tolerance not computed: {', '.join(missing)}"
     elif missing:
         status = "error"
         reason = f"metric(s) with a tolerance not computed: {', '.join(missing)}"

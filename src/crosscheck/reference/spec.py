@@ -10,7 +10,9 @@ The case's ``[reference]`` table says which:
   ``dt / FINE_STEP_FACTOR``); with ``integrator = "dop853"`` SciPy's DOP853 on the independent
   Newton-Euler equations (:mod:`crosscheck.reference.simulated`).
 * ``engine``: another engine's run at the *same* step as the run being judged.
-* ``table``: published data, used by fluid scenes through their own metrics.
+* ``table``: published data (``table``), used by fluid scenes through their own metrics, or the
+  case's own CSV (``file``, read at load into ``reference.data``), compared by
+  :mod:`crosscheck.compare.table_metrics` for rigid and fluid runs alike.
 * ``none``: only conservation metrics.
 
 This module only describes and fetches references; it runs nothing. The simulated ones
@@ -69,6 +71,8 @@ def reference_spec(scene: Scene, dt: float) -> dict[str, Any] | None:
         return {"kind": "engine", "engine": ref.engine, "integrator": ref.integrator,
                 "dt": float(dt)}
     if ref.kind == "table":
+        if ref.file is not None:
+            return {"kind": "table", "file": ref.file}
         return {"kind": "table", "table": ref.table}
     return None
 
@@ -98,7 +102,7 @@ def describe(spec: dict[str, Any] | None) -> str:
         return f"engine: {spec['engine']} {integ} at the same dt"
     if kind == "dop853":
         return f"SciPy solve_ivp DOP853, rtol {spec['rtol']:g}"
-    return f"{kind}: {spec.get('table')}"
+    return f"{kind}: {spec.get('table') or spec.get('file')}"
 
 
 def analytic_reference(scene: Scene, times: np.ndarray, solution: str):
@@ -126,6 +130,8 @@ def for_cell(scene: Scene, spec: dict[str, Any] | None, times: np.ndarray, *,
             return Reference(traj, extra)
         if saved:
             return Reference(Trajectory.load(saved))
+        if spec["kind"] == "table" and spec.get("file"):
+            return Reference()  # the case's own table: compared beside the other metrics
         if spec["kind"] == "table":
             return Reference(missing="a rigid scene has no published table reference")
         return Reference(missing=error or "reference unavailable")

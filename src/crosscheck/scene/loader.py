@@ -151,7 +151,8 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
             raise CaseError(file, f"statics[{i}].name", "a name no body or other static has", n)
     pair_overrides = parse_pair_overrides(top.table_list("contact_pairs", []), names,
                                           static_names, ground is not None, dimension)
-    reference = _reference(top.sub("reference", {}), unchecked)
+    reference = _reference(top.sub("reference", {}), unchecked, base_dir, dimension=dimension,
+                           run=run, names=tuple(names), fluid=fluid, gravity=effects.gravity)
     tolerances = _tolerances(top.sub("tolerances", {}), unchecked)
     engine_options = _engine_options(top.sub("engine_options", {}))
     top.done()
@@ -532,26 +533,58 @@ def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground
     return ground
 
 
-def _reference(f: Fields, unchecked: frozenset[str]) -> Reference:
+def _reference(f: Fields, unchecked: frozenset[str], base_dir: Path, *, dimension: int,
+               run: RunSettings, names: tuple[str, ...], fluid: Any, gravity: Any) -> Reference:
     kind = f.string("kind", "none", choices=REFERENCE_KINDS)
     ref = Reference(
         kind=kind,
         solution=f.string("solution", None) if f.has("solution") else None,
         table=f.string("table", None) if f.has("table") else None,
+        file=f.string("file", None) if f.has("file") else None,
         engine=f.string("engine", None, choices=ENGINE_NAMES) if f.has("engine") else None,
         integrator=f.string("integrator", None) if f.has("integrator") else None,
         dt=f.number("dt", positive=True, unit="s") if f.has("dt") else None,
         params=_free_form(f, "params") if f.has("params") else {},
     )
     # fine-step may omit dt: the comparer then uses run.dt / 100 (docs/metrics.md).
-    required = {"analytic": "solution", "table": "table", "engine": "engine"}
+    required = {"analytic": "solution", "engine": "engine"}
     if kind in required and getattr(ref, required[kind]) is None:
         raise CaseError(f.file, f.field(required[kind]),
                         f"this field, required when reference.kind = {kind!r}")
     if ref.integrator is not None:
         _check_reference_integrator(f, ref, unchecked)
+    if kind == "table":
+        ref = _table_reference(f, ref, base_dir, dimension, run, names, fluid, gravity)
+    else:
+        for key in ("table", "file"):
+            if f.has(key):  # a table the comparer would never read
+                raise f.error(key, f"no {key} unless reference.kind = \"table\"", kind)
     f.done()
     return ref
+
+
+def _table_reference(f: Fields, ref: Reference, base_dir: Path, dimension: int,
+                     run: RunSettings, names: tuple[str, ...], fluid: Any,
+                     gravity: Any) -> Reference:
+    """Published (``table``) or the case's own (``file``): exactly one, checked against the case
+    now, so a table the comparer cannot use never reaches a cell (it would measure nothing)."""
+    from dataclasses import replace
+
+    from crosscheck.scene.published_table import check_published_table
+    from crosscheck.scene.user_table import read_user_table
+
+    if ref.table is None and ref.file is None:
+        raise CaseError(f.file, f.field("table"), "this field (a published data set), or file = "
+                        "\"your.csv\" (your own data), required when reference.kind = \"table\"")
+    if ref.table is not None and ref.file is not None:
+        raise f.error("file", "only one of table (a published data set) and file (your own CSV)",
+                      ref.file)
+    if ref.table is not None:
+        check_published_table(f, ref.table, fluid, gravity)
+        return ref
+    data = read_user_table(f, base_dir, dimension=dimension, duration=run.duration,
+                           body_names=names, fluid=fluid)
+    return replace(ref, data=data)
 
 
 def _check_reference_integrator(f: Fields, ref: Reference, unchecked: frozenset[str]) -> None:

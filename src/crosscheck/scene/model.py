@@ -236,17 +236,40 @@ class RunSettings:
 
 
 @dataclass(frozen=True)
+class UserTable:
+    """A case's own reference data (``reference.file``), read and checked by the loader
+    (crosscheck.scene.user_table). ``axis`` is the first column: "t" (a time series) or "x" / "y"
+    (a fluid profile along the line at the other coordinate ``line``, m). ``columns`` holds every
+    column, the axis included, SI units. ``body``: the body a rigid series describes."""
+
+    path: Path
+    axis: str
+    columns: dict[str, np.ndarray]
+    line: float | None = None
+    body: int | None = None
+    source: tuple[str, ...] = ()
+
+    @property
+    def compared(self) -> tuple[str, ...]:
+        return tuple(c for c in self.columns if c != self.axis)
+
+
+@dataclass(frozen=True)
 class Reference:
     """What a trajectory is compared with.
 
     kind: "analytic" (``solution`` names a function in crosscheck.reference), "table" (a published
-    data set named by ``table``), "fine-step" (``engine``/``integrator`` at step ``dt``), "engine"
-    (another engine's run at the same step), or "none".
+    data set named by ``table``, or the case's own CSV ``file``, read into ``data``), "fine-step"
+    (``engine``/``integrator`` at step ``dt``), "engine" (another engine's run at the same step),
+    or "none".
     """
 
     kind: str = "none"
     solution: str | None = None
     table: str | None = None
+    file: str | None = None
+    # compare=False: arrays have no truth value, and the file's name already tells tables apart
+    data: UserTable | None = field(default=None, compare=False)
     engine: str | None = None
     integrator: str | None = None
     dt: float | None = None
