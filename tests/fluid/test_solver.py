@@ -17,6 +17,7 @@ from crosscheck.sim.fluid import INTEGRATORS, FluidRecord, run_fluid
 from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid import levelset as LS
 from crosscheck.sim.fluid import pressure as P
+from crosscheck.sim.fluid.boundary import SolidBoundary
 
 BASE = """
 [case]
@@ -104,7 +105,8 @@ def test_mic0_pcg_matches_direct_solve_with_free_surface_and_obstacle():
     u = rng.standard_normal((n + 1, n))
     v = rng.standard_normal((n, n + 1))
     opens = np.array([False, False, False, True])
-    idx, diag, xm, xp, ym, yp, b, ndir = P.build_system(phi, solid, u, v, opens)
+    bnd = SolidBoundary.from_cells(solid, opens)
+    idx, diag, xm, xp, ym, yp, b, ndir = P.build_system(phi, solid, bnd.u_frac, bnd.v_frac, u, v)
     assert ndir > 0
     A = _scipy_matrix(diag, xm, xp, ym, yp)
     assert abs(A - A.T).max() == 0                   # symmetric
@@ -128,11 +130,12 @@ def test_projection_makes_fluid_divergence_free():
     v = rng.standard_normal((n, n + 1))
     us = np.zeros(u.shape, np.int8)
     vs = np.zeros(v.shape, np.int8)
-    P.classify_faces(phi, solid, opens, us, vs)
+    bnd = SolidBoundary.from_cells(solid, opens)
+    P.classify_faces(phi, bnd.u_frac, bnd.v_frac, us, vs)
     u[us == P.SOLID] = 0
     v[vs == P.SOLID] = 0
     p = np.zeros((n, n))
-    P.project(phi, solid, opens, u, v, us, vs, p, 1e-12)
+    P.project(phi, bnd, u, v, us, vs, p, 1e-12)
     div = u[1:] - u[:-1] + v[:, 1:] - v[:, :-1]
     assert np.max(np.abs(div[phi < 0])) < 1e-10
 
@@ -171,7 +174,8 @@ def test_velocity_extension_is_constant_along_normals():
     u[:, :16] = np.sin(2 * math.pi * xu)[:, None]    # fluid velocity varies along the surface
     us = np.zeros(u.shape, np.int8)
     vs = np.zeros((n, n + 1), np.int8)
-    P.classify_faces(phi, np.zeros((n, n), bool), np.zeros(4, bool), us, vs)
+    bnd = SolidBoundary.from_cells(np.zeros((n, n), bool), np.zeros(4, bool))
+    P.classify_faces(phi, bnd.u_frac, bnd.v_frac, us, vs)
     LS.extend_velocity(u, us, LS.face_phi(phi, 0), 5 * dx)
     inside = slice(1, n)                             # interior faces
     for j in range(16, 16 + 5):

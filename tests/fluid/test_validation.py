@@ -108,7 +108,7 @@ def test_dam_break_over_an_obstacle(runs):
     from crosscheck.sim.fluid.solver import INTEGRATORS, FluidState
 
     st = FluidState(scene.fluid, np.array([0.0, -9.81]), INTEGRATORS["semi_lagrangian"])
-    solid = st.solid
+    solid = st.static_boundary.cells
     assert 100 <= solid.sum() <= 121                 # a 25 mm block is 10.5 cells of 2.38 mm
     u = rec.fields["u"][-1]
     v = rec.fields["v"][-1]

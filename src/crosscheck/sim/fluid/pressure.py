@@ -5,8 +5,9 @@ simply ``u -= pt[right] - pt[left]``. For every fluid cell the equation is
 
     sum over non-solid neighbours of (pt_cell - pt_nb) = -(sum of outward face velocities)
 
-which is the seed's stencil: a solid neighbour drops out of both the sum and the diagonal (the
-"-3" stencil next to a wall, u . n = 0 is kept by leaving the wall face at the wall velocity).
+which is the seed's stencil: a neighbour across a solid face drops out of both the sum and the
+diagonal (the "-3" stencil next to a wall); u . n = u_solid . n is kept by leaving the solid face
+at the solid's velocity, which the right-hand side includes (``boundary.py``).
 An air neighbour is a Dirichlet neighbour with p = 0 *on the surface*, not at its centre: with the
 surface at a fraction ``theta = phi_f / (phi_f - phi_a)`` of the way to the air centre, the ghost
 pressure is ``pt_f (1 - 1/theta)`` (Gibou et al. 2002; Enright et al. 2003), so the diagonal gets
@@ -33,42 +34,31 @@ AIR, FLUID, SOLID = 0, 1, 2
 
 
 @njit(cache=True)
-def classify_faces(phi, solid, open_sides, ustate, vstate):
-    """Face states: SOLID if on a solid outer wall or next to an obstacle cell, FLUID if next to a
-    fluid cell, AIR otherwise (to be filled by velocity extension)."""
+def classify_faces(phi, u_frac, v_frac, ustate, vstate):
+    """Face states: SOLID where the solid boundary says so (obstacles and closed sides, see
+    ``boundary.py``), FLUID if next to a fluid cell, AIR otherwise (to be filled by velocity
+    extension). A face on an open side looks at its one cell."""
     nx, ny = phi.shape
     for i in range(nx + 1):
         for j in range(ny):
-            if i == 0 or i == nx:
-                c = 0 if i == 0 else nx - 1
-                side_open = open_sides[0] if i == 0 else open_sides[1]
-                if not side_open or solid[c, j]:
-                    ustate[i, j] = SOLID
-                else:
-                    ustate[i, j] = FLUID if phi[c, j] < 0.0 else AIR
+            if u_frac[i, j] > 0.0:
+                ustate[i, j] = SOLID
+            elif i == 0 or i == nx:
+                ustate[i, j] = FLUID if phi[0 if i == 0 else nx - 1, j] < 0.0 else AIR
+            elif phi[i - 1, j] < 0.0 or phi[i, j] < 0.0:
+                ustate[i, j] = FLUID
             else:
-                if solid[i - 1, j] or solid[i, j]:
-                    ustate[i, j] = SOLID
-                elif phi[i - 1, j] < 0.0 or phi[i, j] < 0.0:
-                    ustate[i, j] = FLUID
-                else:
-                    ustate[i, j] = AIR
+                ustate[i, j] = AIR
     for i in range(nx):
         for j in range(ny + 1):
-            if j == 0 or j == ny:
-                c = 0 if j == 0 else ny - 1
-                side_open = open_sides[2] if j == 0 else open_sides[3]
-                if not side_open or solid[i, c]:
-                    vstate[i, j] = SOLID
-                else:
-                    vstate[i, j] = FLUID if phi[i, c] < 0.0 else AIR
+            if v_frac[i, j] > 0.0:
+                vstate[i, j] = SOLID
+            elif j == 0 or j == ny:
+                vstate[i, j] = FLUID if phi[i, 0 if j == 0 else ny - 1] < 0.0 else AIR
+            elif phi[i, j - 1] < 0.0 or phi[i, j] < 0.0:
+                vstate[i, j] = FLUID
             else:
-                if solid[i, j - 1] or solid[i, j]:
-                    vstate[i, j] = SOLID
-                elif phi[i, j - 1] < 0.0 or phi[i, j] < 0.0:
-                    vstate[i, j] = FLUID
-                else:
-                    vstate[i, j] = AIR
+                vstate[i, j] = AIR
 
 
 @njit(cache=True, inline="always")
@@ -78,15 +68,20 @@ def _theta(pf, pa):
 
 
 @njit(cache=True)
-def build_system(phi, solid, u, v, open_sides):
+def build_system(phi, cells, u_frac, v_frac, u, v):
     """Assemble the compressed matrix and right-hand side. Returns
-    ``(index, diag, xm, xp, ym, yp, b, n_dirichlet)``."""
+    ``(index, diag, xm, xp, ym, yp, b, n_dirichlet)``.
+
+    Unknowns are the fluid cells that are not solid (``cells``). A neighbour across a solid face
+    (``u_frac``/``v_frac``, closed sides included) drops out: that face keeps the velocity it
+    carries, the solid's, and enters ``b`` with it (the Neumann condition u . n = u_solid . n).
+    A non-solid face on a side of the domain is an open side."""
     nx, ny = phi.shape
     index = -np.ones((nx, ny), np.int64)
     n = 0
     for i in range(nx):
         for j in range(ny):
-            if phi[i, j] < 0.0 and not solid[i, j]:
+            if phi[i, j] < 0.0 and not cells[i, j]:
                 index[i, j] = n
                 n += 1
     diag = np.zeros(n)
@@ -106,13 +101,19 @@ def build_system(phi, solid, u, v, open_sides):
             for s in range(4):
                 a = i + (1 if s == 0 else (-1 if s == 1 else 0))
                 c = j + (1 if s == 2 else (-1 if s == 3 else 0))
+                if s == 0:
+                    frac = u_frac[i + 1, j]
+                elif s == 1:
+                    frac = u_frac[i, j]
+                elif s == 2:
+                    frac = v_frac[i, j + 1]
+                else:
+                    frac = v_frac[i, j]
+                if frac > 0.0:
+                    continue  # solid face: Neumann, out of the stencil and the diagonal
                 if a < 0 or a >= nx or c < 0 or c >= ny:
-                    side = 0 if a < 0 else (1 if a >= nx else (2 if c < 0 else 3))
-                    if open_sides[side]:
-                        d += 2.0  # p = 0 on the open boundary, half a cell away
-                        n_dir += 1
-                    continue
-                if solid[a, c]:
+                    d += 2.0  # open side: p = 0 on the boundary, half a cell away
+                    n_dir += 1
                     continue
                 m = index[a, c]
                 if m >= 0:
@@ -257,7 +258,7 @@ def pcg(diag, xm, xp, ym, yp, b, x, tol, max_iter):
 
 
 @njit(cache=True)
-def apply_pressure(pt, phi, solid, open_sides, u, v, ustate, vstate):
+def apply_pressure(pt, phi, u, v, ustate, vstate):
     """``u -= grad pt`` on fluid faces, with ghost-fluid pressures across the free surface and
     ``p = 0`` half a cell beyond an open side. ``pt`` is on the full grid (0 outside fluid)."""
     nx, ny = phi.shape
@@ -322,11 +323,14 @@ def gather(index, grid, n):
     return x
 
 
-def project(phi, solid, open_sides, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
-    """Make ``u, v`` discretely divergence free in the fluid. ``p_guess`` (scaled pressure on the
-    grid) warm-starts the solve and receives the new scaled pressure. Returns (iterations,
-    fluid cell count, largest |divergence| residual before the solve)."""
-    index, diag, xm, xp, ym, yp, b, n_dir = build_system(phi, solid, u, v, open_sides)
+def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
+    """Make ``u, v`` discretely divergence free in the fluid with the solid boundary ``bnd``
+    (``boundary.SolidBoundary``), whose velocity the solid faces of ``u, v`` must already carry
+    (``boundary.impose``). ``p_guess`` (scaled pressure on the grid) warm-starts the solve and
+    receives the new scaled pressure. Returns (iterations, fluid cell count, largest |divergence|
+    residual before the solve)."""
+    index, diag, xm, xp, ym, yp, b, n_dir = build_system(phi, bnd.cells, bnd.u_frac, bnd.v_frac,
+                                                         u, v)
     n = diag.shape[0]
     if n == 0:
         p_guess[:] = 0.0
@@ -334,12 +338,13 @@ def project(phi, solid, open_sides, u, v, ustate, vstate, p_guess, tol, max_iter
     if n_dir == 0:
         # Enclosed fluid without free surface: the matrix is singular (pressure up to a
         # constant). Adding 1 to one diagonal entry pins that cell to p = 0; because the
-        # right-hand side of an enclosed flow sums to zero (walls carry no normal flux), the
-        # modified system's solution satisfies the original equations exactly.
+        # right-hand side of an enclosed flow sums to zero (the solid faces around it carry no
+        # net flux: walls at rest, or solids moving rigidly), the modified system's solution
+        # satisfies the original equations exactly.
         diag[0] += 1.0
     x = gather(index, p_guess, n)
     bmax = float(np.max(np.abs(b)))
     its = pcg(diag, xm, xp, ym, yp, b, x, max(tol * bmax, 1e-13), max_iter)
     scatter(index, x, p_guess)
-    apply_pressure(p_guess, phi, solid, open_sides, u, v, ustate, vstate)
+    apply_pressure(p_guess, phi, u, v, ustate, vstate)
     return its, n, bmax

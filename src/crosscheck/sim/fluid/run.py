@@ -212,7 +212,7 @@ class FluidRun:
             "integrator": self.name,
             "integrator_description": self.scheme.description,
             "grid": {"nx": st.nx, "ny": st.ny, "dx": st.dx, "domain": [st.lx, st.ly],
-                     "obstacle_cells": int(st.solid.sum())},
+                     "obstacle_cells": int(st.static_boundary.cells.sum())},
             "dt_mode": "fixed" if self.fixed else "cfl",
             "dt": {"min": min(dts) if dts else None, "max": max(dts) if dts else None,
                    "mean": (sum(dts) / n) if n else None, "steps": n,

@@ -29,8 +29,9 @@ import numpy as np
 from crosscheck.scene.fluid import FluidSpec, Layer
 from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid import levelset as LS
+from crosscheck.sim.fluid.boundary import SolidBoundary, impose, static_boundary
 from crosscheck.sim.fluid.particles import Particles
-from crosscheck.sim.fluid.pressure import SOLID, classify_faces, project
+from crosscheck.sim.fluid.pressure import classify_faces, project
 
 
 @dataclass(frozen=True)
@@ -82,13 +83,9 @@ class FluidState:
         self.xc, self.yc = np.meshgrid(xc, yc, indexing="ij")
         self.centres = np.stack([self.xc, self.yc], axis=-1)  # (nx, ny, 2): shape query points
 
-        # a cell is solid when its centre is strictly inside an obstacle (docs/fluid.md)
-        self.solid = np.zeros((self.nx, self.ny), bool)
-        for obstacle in spec.obstacles:
-            self.solid |= obstacle.contains(self.centres)
-        self.has_solid = bool(self.solid.any())
-        sides = ("left", "right", "bottom", "top")
-        self.open_sides = np.array([spec.walls.get(s, "solid") == "open" for s in sides])
+        # the scene's obstacles at rest; step() takes another boundary when the solid moves
+        self.static_boundary = static_boundary(spec, self.centres)
+        self.boundary = self.static_boundary   # the one of the last step (measurements read it)
 
         # ghost-row coefficients (ghost = a * interior + c) for tangential velocity at each side
         def ghost(side: str) -> tuple[float, float]:
@@ -133,11 +130,10 @@ class FluidState:
         if scheme.particles or spec.particles.enabled:
             ps = spec.particles
             self.particles = Particles(ps.per_cell, ps.band, ps.reseed_every, ps.seed)
-            self.particles.seed(self.phi, self.dx, self.solid)
+            self.particles.seed(self.phi, self.dx, self.boundary.cells)
         self.classify()
         if self.prescribed is None:
-            self.u[self.ustate == SOLID] = 0.0
-            self.v[self.vstate == SOLID] = 0.0
+            impose(self.u, self.v, self.ustate, self.vstate, self.boundary)
         self.step_index = 0
         self.last_iterations = 0
         self.fluid_cells0 = self.fluid_cells()
@@ -164,10 +160,11 @@ class FluidState:
         return phi
 
     def classify(self) -> None:
-        classify_faces(self.phi, self.solid, self.open_sides, self.ustate, self.vstate)
+        b = self.boundary
+        classify_faces(self.phi, b.u_frac, b.v_frac, self.ustate, self.vstate)
 
     def fluid_cells(self) -> int:
-        return int(np.count_nonzero((self.phi < 0) & ~self.solid))
+        return int(np.count_nonzero((self.phi < 0) & ~self.boundary.cells))
 
     def pad(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         K.pad_u(u, self.up, *self.gu)
@@ -182,12 +179,18 @@ class FluidState:
         return m
 
     # -- one step ------------------------------------------------------------------------
-    def step(self, dt: float, timers: dict[str, float]) -> dict[str, Any]:
+    def step(self, dt: float, timers: dict[str, float],
+             solid: SolidBoundary | None = None) -> dict[str, Any]:
+        """Advance by ``dt`` with the solid boundary ``solid`` (None: the scene's static
+        obstacles). A moving solid passes its boundary every step; it is the solid for the whole
+        step (path clipping, face states, the projection's Neumann data) and for the
+        measurements after it."""
         spec = self.spec
         dx = self.dx
+        bnd = self.boundary = self.static_boundary if solid is None else solid
         t0 = time.perf_counter()
         up, vp = self.pad(self.u, self.v)
-        args = (up, vp, dt, dx, self.lx, self.ly, self.solid, self.has_solid)
+        args = (up, vp, dt, dx, self.lx, self.ly, bnd.cells, bnd.has_cells)
         mac = self.scheme.advection == "maccormack"
         if self.has_surface:
             # only the band can change sign or be read by the next steps (|u| dt <= cfl_limit dx)
@@ -206,7 +209,7 @@ class FluidState:
         else:
             un, vn = self.u, self.v
         if self.particles is not None:
-            self.particles.advect(up, vp, dt, dx, self.lx, self.ly, self.solid, self.has_solid)
+            self.particles.advect(up, vp, dt, dx, self.lx, self.ly, bnd.cells, bnd.has_cells)
         t1 = time.perf_counter()
         timers["advection"] += t1 - t0
 
@@ -218,8 +221,8 @@ class FluidState:
                 timers["particles"] += t1b - t1
                 t1 = t1b
             if (self.step_index + 1) % spec.redistance_every == 0:
-                if self.has_solid:
-                    K.fill_solid(self.phi, self.solid, self.band_cells)
+                if bnd.has_cells:
+                    K.fill_solid(self.phi, bnd.cells, self.band_cells)
                 self.phi = LS.redistance(self.phi, dx, self.redist_cells, spec.redistancing)
             t2 = time.perf_counter()
             timers["redistancing"] += t2 - t1
@@ -227,7 +230,7 @@ class FluidState:
                 self.particles.correct(self.phi, dx)
                 self.particles.adjust_radii(self.phi, dx)
                 if (self.step_index + 1) % self.particles.reseed_every == 0:
-                    self.particles.seed(self.phi, dx, self.solid)
+                    self.particles.seed(self.phi, dx, bnd.cells)
                 timers["particles"] += time.perf_counter() - t2
         t2 = time.perf_counter()
 
@@ -239,8 +242,7 @@ class FluidState:
             if g[1] != 0.0:
                 vn += g[1] * dt
             self.classify()
-            un[self.ustate == SOLID] = 0.0
-            vn[self.vstate == SOLID] = 0.0
+            impose(un, vn, self.ustate, self.vstate, bnd)   # before viscosity: its wall velocity
             nu = spec.kinematic_viscosity
             if nu > 0.0:
                 k_total = nu * dt / (dx * dx)
@@ -254,8 +256,8 @@ class FluidState:
 
             scale = dt / (spec.density * dx)
             pt = self.p * scale
-            its, _, _ = project(self.phi, self.solid, self.open_sides, un, vn, self.ustate,
-                                self.vstate, pt, spec.pressure_tolerance)
+            its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
+                                spec.pressure_tolerance)
             self.p = pt / scale
             t4 = time.perf_counter()
             timers["projection"] += t4 - t3
@@ -312,7 +314,8 @@ class FluidState:
 
     def measure(self) -> dict[str, float]:
         dx = self.dx
-        fluid = (self.phi < 0) & ~self.solid
+        solid = self.boundary.cells
+        fluid = (self.phi < 0) & ~solid
         uc, vc = self.centre_velocity()
         speed2 = uc * uc + vc * vc
         out = {
@@ -321,14 +324,14 @@ class FluidState:
             "fluid_cells": float(np.count_nonzero(fluid)),
         }
         if self.has_surface:
-            out["volume"] = LS.fluid_area(self.phi, self.solid, dx)
+            out["volume"] = LS.fluid_area(self.phi, solid, dx)
             out["front"] = float(LS.front_position(self.phi, 0, dx))
             px = self.spec.output.probe_x
             gx = 0.0 if px is None else min(max(px / dx - 0.5, 0.0), self.nx - 1.0)
             i0 = min(int(gx), self.nx - 2)
             out["surface_height"] = float(LS.surface_height(self.phi, i0, gx - i0, dx))
         else:
-            out["volume"] = float(np.count_nonzero(~self.solid)) * dx * dx
+            out["volume"] = float(np.count_nonzero(~solid)) * dx * dx
         if self.particles is not None:
             out["particles"] = float(self.particles.count)
         return out
