@@ -173,3 +173,32 @@ def internal_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
     relative to it (-F_i . (x_i - c); 2D also -tau theta). Invariant under a Galilean boost and
     a shift of the origin when no spring is anchored to the world."""
     return total_energy(scene, traj) - translational_energy(scene, traj)
+
+
+def exchangeable_energy(scene: Scene, first: Trajectory) -> float:
+    """A generous upper bound on the energy the scene can exchange in its whole run, from its
+    first sample: T(0) + V_springs(0) + sum_i |F_i| (|v_i(0)| D + |F_i| D^2 / (2 m_i))
+    + sum_i |tau_i| (|w_i(0)| D + |tau_i| D^2 / (2 I_min,i)), F_i = m_i g + the constant loads,
+    tau_i the constant torques, D the duration (the work of the constant forces over the longest
+    free-flight distance). The run driver's blow-up cut and the comparer's blow-up test both
+    measure against it."""
+    total = float(kinetic_energy(scene, first)[0] + spring_potential_energy(scene, first)[0])
+    duration = scene.run.duration
+    d = scene.dimension
+    forces = np.zeros((len(scene.bodies), d))
+    torques = np.zeros((len(scene.bodies), 3 if d == 3 else 1))
+    if scene.effects.gravity is not None:
+        forces += scene.masses[:, None] * np.asarray(scene.effects.gravity, float)
+    for load in scene.effects.loads:
+        forces[load.body] += np.asarray(load.force, float)
+        torques[load.body] += np.asarray(load.torque, float).reshape(-1)
+    for i, body in enumerate(scene.bodies):
+        f = float(np.linalg.norm(forces[i]))
+        total += f * (float(np.linalg.norm(body.velocity)) * duration
+                      + f * duration**2 / (2.0 * body.mass))
+        tau = float(np.linalg.norm(torques[i]))
+        if tau > 0:
+            i_min = float(np.min(np.linalg.eigvalsh(np.atleast_2d(body.inertia))))
+            total += tau * (float(np.linalg.norm(body.angular_velocity)) * duration
+                            + tau * duration**2 / (2.0 * max(i_min, 1e-300)))
+    return total

@@ -165,32 +165,12 @@ def angular_momentum_scale(scene: Scene, traj: Trajectory) -> float:
 
 
 def available_energy(scene: Scene, traj: Trajectory) -> float:
-    """``E_avail``, the generous bound on exchangeable energy used by the blow-up test."""
-    from crosscheck.quantities import kinetic_energy, spring_potential_energy
+    """``E_avail``, the generous bound on exchangeable energy used by the blow-up test:
+    quantities.exchangeable_energy plus E_floor."""
+    from crosscheck.quantities import exchangeable_energy
 
     first = _first_sample(traj)
-    total = energy_floor(scene)
-    if first is not None:
-        total += float(kinetic_energy(scene, first)[0] + spring_potential_energy(scene, first)[0])
-    duration = scene.run.duration
-    d = scene.dimension
-    forces = np.zeros((len(scene.bodies), d))
-    torques = np.zeros((len(scene.bodies), 1 if d == 2 else 3))
-    if scene.effects.gravity is not None:
-        forces += scene.masses[:, None] * np.asarray(scene.effects.gravity, float)
-    for load in scene.effects.loads:
-        forces[load.body] += np.asarray(load.force, float)
-        torques[load.body] += np.asarray(load.torque, float).reshape(-1)
-    for i, body in enumerate(scene.bodies):
-        f = float(np.linalg.norm(forces[i]))
-        v0 = float(np.linalg.norm(body.velocity))
-        total += f * (v0 * duration + f * duration**2 / (2.0 * body.mass))
-        tau = float(np.linalg.norm(torques[i]))
-        if tau > 0:
-            i_min = float(np.min(np.linalg.eigvalsh(np.atleast_2d(body.inertia))))
-            w0 = float(np.linalg.norm(body.angular_velocity))
-            total += tau * (w0 * duration + tau * duration**2 / (2.0 * max(i_min, 1e-300)))
-    return total
+    return energy_floor(scene) + (0.0 if first is None else exchangeable_energy(scene, first))
 
 
 def _first_sample(traj: Trajectory) -> Trajectory | None:

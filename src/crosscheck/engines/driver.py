@@ -120,28 +120,9 @@ class RunResult:
 # -- blow-up detection ---------------------------------------------------------------------------
 def energy_scale(scene: Scene, first: Trajectory) -> float:
     """A generous bound on the energy the scene can exchange in its run (see RUNAWAY_FACTOR)."""
-    from crosscheck.quantities import kinetic_energy, spring_potential_energy
+    from crosscheck.quantities import exchangeable_energy
 
-    total = float(kinetic_energy(scene, first)[0] + spring_potential_energy(scene, first)[0])
-    duration = scene.run.duration
-    d = scene.dimension
-    forces = np.zeros((len(scene.bodies), d))
-    torques = np.zeros((len(scene.bodies), 3 if d == 3 else 1))
-    if scene.effects.gravity is not None:
-        forces += scene.masses[:, None] * np.asarray(scene.effects.gravity, float)
-    for load in scene.effects.loads:
-        forces[load.body] += load.force
-        torques[load.body] += np.asarray(load.torque, float).reshape(-1)
-    for i, body in enumerate(scene.bodies):
-        f = float(np.linalg.norm(forces[i]))
-        total += f * (float(np.linalg.norm(body.velocity)) * duration
-                      + f * duration**2 / (2.0 * body.mass))
-        tau = float(np.linalg.norm(torques[i]))
-        if tau > 0:
-            i_min = float(np.min(np.linalg.eigvalsh(np.atleast_2d(body.inertia))))
-            total += tau * (float(np.linalg.norm(body.angular_velocity)) * duration
-                            + tau * duration**2 / (2.0 * i_min))
-    return max(total, 1e-12)
+    return max(exchangeable_energy(scene, first), 1e-12)
 
 
 def _trajectory(scene: Scene, t: np.ndarray, arrays, extras, meta) -> Trajectory:
