@@ -112,11 +112,16 @@ def apply_control(control, F, T):
 
 
 @njit(**JIT)
-def accumulate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, v, w, F, T):
-    F[:] = 0.0
-    T[:] = 0.0
-    if gravity is not None:
-        apply_gravity(bodies, gravity, F)
+def accumulate(springs, drag, loads, control, x, angle, v, w, F, T):
+    """F, T += the smooth force law at world-frame planar states: the one implementation of
+    springs, drag, loads and the control's wrench in 2D, shared by the in-house force pass and
+    PyBullet's adapter (its planar-joint bodies).
+
+    x (N, 2) centres of mass, angle (N,) the rotations of the frames the springs' offsets are
+    stored in, v (N, 2), w (N,) velocities, world frame; F (N, 2), T (N,) hold what came before
+    (the in-house pass: gravity) and are added to in this order: springs, drag, loads, control.
+    An effect given as ``None`` leaves no code (numba prunes its branch).
+    """
     if springs is not None:
         apply_springs(springs, x, angle, v, w, F, T)
     if drag is not None:
@@ -128,9 +133,32 @@ def accumulate(bodies, gravity, springs, drag, loads, control, contacts, x, angl
 
 
 @njit(**JIT)
+def accumulate_rows(springs, drag, loads, rows, x, angle, v, w, F, T):
+    """F, T = the force law (``accumulate``, no gravity, no control) at states given as rows
+    (N, 6): centre of mass (2), angle, centre-of-mass velocity (2), angular velocity: the
+    coordinates and rates of PyBullet's planar joints. x, angle, v, w are filled from the rows
+    (scratch for the caller: PyBullet's adapter, once per step)."""
+    for i in range(rows.shape[0]):
+        x[i, 0] = rows[i, 0]
+        x[i, 1] = rows[i, 1]
+        angle[i] = rows[i, 2]
+        v[i, 0] = rows[i, 3]
+        v[i, 1] = rows[i, 4]
+        w[i] = rows[i, 5]
+    F[:] = 0.0
+    T[:] = 0.0
+    accumulate(springs, drag, loads, None, x, angle, v, w, F, T)
+
+
+@njit(**JIT)
 def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, P, L, v, w, F, T):
+    """Kinematics, gravity, then ``accumulate`` (springs, drag, loads, control)."""
     kinematics(bodies, P, L, v, w)
-    accumulate(bodies, gravity, springs, drag, loads, control, contacts, x, angle, v, w, F, T)
+    F[:] = 0.0
+    T[:] = 0.0
+    if gravity is not None:
+        apply_gravity(bodies, gravity, F)
+    accumulate(springs, drag, loads, control, x, angle, v, w, F, T)
 
 
 @njit(**JIT)

@@ -234,15 +234,81 @@ def apply_loads(loads, F, T):
             T[i, c] += loads.torque[k, c]
 
 
+@njit(**INLINE)
+def body_wrench(drag, control, i, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz):
+    """(fx, ..., tz) + body i's drag, then + its control wrench: the per-body terms of
+    ``accumulate``, kept in registers (the in-house pass adds them right after gravity)."""
+    if drag is not None:
+        dfx, dfy, dfz, dtx, dty, dtz = drag_wrench(drag, i, vx, vy, vz, wx, wy, wz)
+        fx += dfx
+        fy += dfy
+        fz += dfz
+        tx += dtx
+        ty += dty
+        tz += dtz
+    if control is not None:
+        cfx, cfy, cfz, ctx, cty, ctz = control_wrench(control, i)
+        fx += cfx
+        fy += cfy
+        fz += cfz
+        tx += ctx
+        ty += cty
+        tz += ctz
+    return fx, fy, fz, tx, ty, tz
+
+
+@njit(**INLINE)
+def accumulate(springs, drag, loads, control, x, R, v, w, F, T):
+    """F, T += the smooth force law at world-frame states: the one implementation of drag, the
+    control's wrench, springs and loads, shared by the in-house force pass and PyBullet's adapter.
+
+    x (N, 3) centres of mass, R (N, 3, 3) the rotations of the frames the springs' offsets are
+    stored in (read by springs only), v, w (N, 3) centre-of-mass and angular velocities, all
+    world frame; F, T (N, 3) hold what came before (gravity) and are added to, per body in this
+    order: drag, the control's wrench (``body_wrench``), then every spring, then every load.
+    An effect given as ``None`` leaves no code (numba prunes its branch). The in-house pass adds
+    the per-body terms in its kinematics loop and passes ``drag=control=None`` here.
+    """
+    if drag is not None or control is not None:
+        for i in range(F.shape[0]):
+            F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2] = body_wrench(
+                drag, control, i, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2],
+                F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2])
+    if springs is not None:
+        apply_springs(springs, x, R, v, w, F, T)
+    if loads is not None:
+        apply_loads(loads, F, T)
+
+
+@njit(**JIT)
+def accumulate_rows(springs, drag, loads, rows, x, R, v, w, F, T):
+    """F, T = the force law (``accumulate``, no gravity, no control) at states given as rows
+    (N, 13): centre of mass (3), unit quaternion as (x, y, z, w), scalar last, the order Bullet
+    reports it (4), centre-of-mass velocity (3), angular velocity (3), all world frame. x, R, v,
+    w are filled from the rows (scratch for the caller: PyBullet's adapter, once per step)."""
+    for i in range(rows.shape[0]):
+        for c in range(3):
+            x[i, c] = rows[i, c]
+            v[i, c] = rows[i, 7 + c]
+            w[i, c] = rows[i, 10 + c]
+            F[i, c] = 0.0
+            T[i, c] = 0.0
+        (R[i, 0, 0], R[i, 0, 1], R[i, 0, 2], R[i, 1, 0], R[i, 1, 1], R[i, 1, 2], R[i, 2, 0],
+         R[i, 2, 1], R[i, 2, 2]) = quat_to_rotation(rows[i, 6], rows[i, 3], rows[i, 4],
+                                                    rows[i, 5])
+    accumulate(springs, drag, loads, None, x, R, v, w, F, T)
+
+
 @njit(**JIT)
 def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, L, R, v, w, F, T):
     """Kinematics and the net force and torque of the declared effects at (x, q, P, L).
 
-    One pass over the bodies computes R, v, w and the per-body effects (gravity, drag, the
-    control's external wrench); springs and loads scatter afterwards. Every ``is not None`` test
-    is resolved when numba compiles the specialisation for the scene's effects: an undeclared
-    effect, or ``control=None``, leaves no code in the step (R is only stored when springs need
-    it). ``contacts`` is the contact model's slot, always None today: no code reads it.
+    One pass over the bodies computes R, v, w, gravity and ``accumulate``'s per-body terms
+    (drag, the control's external wrench: ``body_wrench``); ``accumulate`` then adds springs
+    and loads. Every ``is not None`` test is resolved when
+    numba compiles the specialisation for the scene's effects: an undeclared effect, or
+    ``control=None``, leaves no code in the step (R is only stored when springs need it).
+    ``contacts`` is the contact model's slot, always None today: no code reads it.
     """
     for i in range(q.shape[0]):
         (r00, r01, r02, r10, r11, r12, r20, r21, r22, vx, vy, vz, wx, wy,
@@ -259,28 +325,10 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
             fx += gx
             fy += gy
             fz += gz
-        if drag is not None:
-            dfx, dfy, dfz, dtx, dty, dtz = drag_wrench(drag, i, vx, vy, vz, wx, wy, wz)
-            fx += dfx
-            fy += dfy
-            fz += dfz
-            tx += dtx
-            ty += dty
-            tz += dtz
-        if control is not None:
-            cfx, cfy, cfz, ctx, cty, ctz = control_wrench(control, i)
-            fx += cfx
-            fy += cfy
-            fz += cfz
-            tx += ctx
-            ty += cty
-            tz += ctz
-        F[i, 0], F[i, 1], F[i, 2] = fx, fy, fz
-        T[i, 0], T[i, 1], T[i, 2] = tx, ty, tz
-    if springs is not None:
-        apply_springs(springs, x, R, v, w, F, T)
-    if loads is not None:
-        apply_loads(loads, F, T)
+        # accumulate's per-body terms, fused into this pass (the same helper, the same order)
+        F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2] = body_wrench(
+            drag, control, i, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz)
+    accumulate(springs, None, loads, None, x, R, v, w, F, T)
 
 
 @njit(**INLINE)
