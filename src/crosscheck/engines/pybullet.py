@@ -49,10 +49,10 @@ the body z axis and the world z axis (rad), ``out_of_plane_omega`` (T, N) |(omeg
 Springs, drag and loads are applied before every step from the state at the start of the step
 (``applyExternalForce`` / ``applyExternalTorque`` in WORLD_FRAME at the centre of mass; 2D
 multibody: generalised forces through ``TORQUE_CONTROL`` on the three joints). The force law is
-the in-house simulator's (``accumulate_rows`` of sim/rigid's kernels: the 3D law on the inertial
-frame PyBullet reports, the 2D law on the planar joints' coordinates). PyBullet then does
-``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the velocity for
-damping and drag. PyBullet clears applied forces after every step.
+the in-house simulator's (``accumulate_rows`` of sim/rigid's forces3d / forces2d: the 3D law
+on the inertial frame PyBullet reports, the 2D law on the planar joints' coordinates). PyBullet
+then does ``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the
+velocity for damping and drag. PyBullet clears applied forces after every step.
 """
 
 from __future__ import annotations
@@ -568,7 +568,7 @@ class PybulletModel:
     # -- stepping -------------------------------------------------------------------------
     def _init_forces(self) -> None:
         """The scene's springs, drag and loads for ``_apply_forces``: the in-house kernels' force
-        law (kernels3d.accumulate; planar joints: kernels2d.accumulate), its arrays and the
+        law (forces3d.accumulate; planar joints: forces2d.accumulate), its arrays and the
         state rows and scratch it is evaluated on. ``self.forces_active`` is False without any.
         """
         dim = 2 if self.planar_joints else 3
@@ -579,9 +579,9 @@ class PybulletModel:
             return
         springs, drag, loads, acted = law
         if dim == 3:
-            from crosscheck.sim.rigid.kernels3d import accumulate_rows
+            from crosscheck.sim.rigid.forces3d import accumulate_rows
         else:
-            from crosscheck.sim.rigid.kernels2d import accumulate_rows
+            from crosscheck.sim.rigid.forces2d import accumulate_rows
         n = len(self.bodies)
         self._rows = np.zeros((n, 13 if dim == 3 else 6))
         if dim == 3:
