@@ -218,7 +218,7 @@ sys.path.insert(0, sys.argv[1])
 from bench_rigid import scene_text, inert
 from crosscheck.scene.loader import load_case_text
 from crosscheck.sim.rigid import RigidSimulation, compile_model, state_from_scene
-from crosscheck.sim.rigid import kernels3d as k3
+from crosscheck.sim.rigid import explicit3d
 scene = load_case_text(scene_text(2, False))
 base = compile_model(scene)
 out = {}
@@ -226,7 +226,7 @@ for label, model in (("gravity only", base), ("gravity + inert springs, drag, lo
                      ("no effects", base.without("gravity"))):
     state = state_from_scene(model, scene)
     RigidSimulation(model, "rk4").advance(state, 1, 1e-3)
-    ir = [v for k, v in k3.advance_rk4.inspect_llvm().items()
+    ir = [v for k, v in explicit3d.advance_rk4.inspect_llvm().items()
           if str(k[1]) == str(numba.typeof(model.gravity))
           and str(k[2]) == str(numba.typeof(model.springs))
           and str(k[3]) == str(numba.typeof(model.drag))][0]

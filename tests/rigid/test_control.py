@@ -135,7 +135,7 @@ import json, sys
 import numpy as np
 from crosscheck.scene.loader import load_case_text
 from crosscheck.sim.rigid import Control, compile_model, state_from_scene
-from crosscheck.sim.rigid import kernels3d as k3
+from crosscheck.sim.rigid import forces3d
 import numba
 scene = load_case_text(sys.argv[1])
 model = compile_model(scene).without("springs", "drag", "loads")
@@ -144,8 +144,8 @@ out = {}
 for label, control in (("none", None), ("control", Control.zeros(model))):
     s = state_from_scene(model, scene)
     R, v, w, F, T = np.empty((n, 3, 3)), *(np.empty((n, 3)) for _ in range(4))
-    k3.evaluate(*model.kernel_args(), control, None, *s.arrays(), R, v, w, F, T)
-    irs = [ir for sig, ir in k3.evaluate.inspect_llvm().items()
+    forces3d.evaluate(*model.kernel_args(), control, None, *s.arrays(), R, v, w, F, T)
+    irs = [ir for sig, ir in forces3d.evaluate.inspect_llvm().items()
            if str(sig[5]) == str(numba.typeof(control))]
     out[label] = {"lines": irs[0].count("\n"), "Control": "Control" in irs[0]}
 print(json.dumps(out))

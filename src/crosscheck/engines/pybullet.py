@@ -48,10 +48,11 @@ the body z axis and the world z axis (rad), ``out_of_plane_omega`` (T, N) |(omeg
 
 Springs, drag and loads are applied before every step from the state at the start of the step
 (``applyExternalForce`` / ``applyExternalTorque`` in WORLD_FRAME at the centre of mass; 2D
-multibody: generalised forces through ``TORQUE_CONTROL`` on the three joints). PyBullet then does
-``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the velocity for
-damping and drag. PyBullet clears applied forces after every step. The compiled loop does the
-same through Bullet's C API (the joints' velocity indices for the 2D torques, from getJointInfo).
+multibody: generalised forces through ``TORQUE_CONTROL`` on the three joints). The force law is
+the in-house simulator's (``accumulate_rows`` of sim/rigid's forces3d / forces2d: the 3D law
+on the inertial frame PyBullet reports, the 2D law on the planar joints' coordinates). PyBullet
+then does ``v += h a(x_n, v_n); x += h v_{n+1}``: symplectic Euler for springs, explicit in the
+velocity for damping and drag. PyBullet clears applied forces after every step.
 """
 
 from __future__ import annotations
@@ -176,117 +177,69 @@ class _BodyMap:
     com3: np.ndarray  # (3,) centre of mass in the body frame (2D: z = 0)
 
 
-def _rotate(q, r):
-    """Rotate the 3-vector r by the unit quaternion q = (x, y, z, w), in plain floats.
+def _force_law(scene: Scene, dim: int, offset) -> tuple[Any, Any, Any, list[int]] | None:
+    """The scene's springs, drag and loads as the in-house kernels' arrays (model.Springs, Drag,
+    Loads) for the ``dim``-dimensional force law, and the bodies they act on; None if none.
 
-    The per-step force path runs once per step in Python: tuples of floats cost a fraction of
-    small NumPy arrays there (measured 350 us per step with NumPy for two bodies).
+    ``offset(body, point)``: a body-frame attachment point relative to the centre of mass, in
+    the frame whose rotation the adapter reads (3D: the inertial frame, see ``_local_offset``;
+    planar joints: the body frame, rotated by the joint angle). A 2D scene run with the 3D law
+    (maximal bodies) is embedded at z = 0, its load torques about z.
     """
-    x, y, z, w = q
-    rx, ry, rz = r
-    tx = 2.0 * (y * rz - z * ry)
-    ty = 2.0 * (z * rx - x * rz)
-    tz = 2.0 * (x * ry - y * rx)
-    return (rx + w * tx + y * tz - z * ty, ry + w * ty + z * tx - x * tz,
-            rz + w * tz + x * ty - y * tx)
+    from crosscheck.sim.rigid.model import Drag, Loads, Springs
 
-
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-class _Forces:
-    """Springs, drag and loads of a scene, evaluated from the state at the start of a step.
-
-    Works on 3-vectors for both dimensions (2D states embedded at z = 0). The state of body i is
-    (com, q, v, w): centre of mass, the quaternion (x, y, z, w) that rotates the stored
-    attachment offsets (relative to the centre of mass) into the world, velocity of the centre
-    of mass and angular velocity, all world frame. The force on a spring's body a is
-    ``-(k (l - l0) + c dl/dt) e`` with e from the point on b to the point on a (the Scene's).
-    """
-
-    def __init__(self, scene: Scene, local_offset):
-        n = len(scene.bodies)
-        eff = scene.effects
-        self.springs = []
+    n = len(scene.bodies)
+    eff = scene.effects
+    springs = drag = loads = None
+    acted: set[int] = set()
+    if eff.springs:
+        a_idx, b_idx, ra, rb = [], [], [], []
         for s in eff.springs:
-            ra = tuple(float(x) for x in local_offset(s.body_a, s.attach_a))
+            a_idx.append(s.body_a)
+            ra.append([float(x) for x in offset(s.body_a, s.attach_a)])
+            acted.add(s.body_a)
             if s.body_b is None:
-                anchor = [0.0, 0.0, 0.0]
+                anchor = [0.0] * dim
                 anchor[: scene.dimension] = [float(x) for x in s.attach_b]
-                anchor, rb = tuple(anchor), None
+                b_idx.append(-1)
+                rb.append(anchor)
             else:
-                anchor = None
-                rb = tuple(float(x) for x in local_offset(s.body_b, s.attach_b))
-            self.springs.append((s.body_a, ra, s.body_b, rb, anchor, float(s.stiffness),
-                                 float(s.damping), float(s.rest_length)))
-        lin = [0.0] * n
-        ang = [0.0] * n
+                b_idx.append(s.body_b)
+                rb.append([float(x) for x in offset(s.body_b, s.attach_b)])
+                acted.add(s.body_b)
+        springs = Springs(
+            a=np.array(a_idx, dtype=np.int64), b=np.array(b_idx, dtype=np.int64),
+            ra=np.array(ra, float).reshape(-1, dim), rb=np.array(rb, float).reshape(-1, dim),
+            stiffness=np.array([float(s.stiffness) for s in eff.springs]),
+            damping=np.array([float(s.damping) for s in eff.springs]),
+            rest_length=np.array([float(s.rest_length) for s in eff.springs]))
+    if eff.drag:
+        lin, ang = np.zeros(n), np.zeros(n)
         for d in eff.drag:
-            for b in d.bodies:
-                lin[b] += float(d.linear)
-                ang[b] += float(d.angular)
-        self.drag = [(i, lin[i], ang[i]) for i in range(n) if lin[i] or ang[i]]
-        self.force0 = [[0.0, 0.0, 0.0] for _ in range(n)]
-        self.torque0 = [[0.0, 0.0, 0.0] for _ in range(n)]
-        for ld in eff.loads:
-            for k in range(scene.dimension):
-                self.force0[ld.body][k] += float(ld.force[k])
-            if scene.dimension == 3:
-                for k in range(3):
-                    self.torque0[ld.body][k] += float(ld.torque[k])
+            for i in d.bodies:
+                lin[i] += float(d.linear)
+                ang[i] += float(d.angular)
+        drag = Drag(linear=lin, angular=ang)
+        acted |= {i for i in range(n) if lin[i] or ang[i]}
+    if eff.loads:
+        k = len(eff.loads)
+        force = np.zeros((k, dim))
+        torque = np.zeros((k, 3)) if dim == 3 else np.zeros(k)
+        for j, ld in enumerate(eff.loads):
+            force[j, : scene.dimension] = [float(x) for x in ld.force]
+            t = [float(x) for x in np.asarray(ld.torque, float).reshape(-1)]
+            if dim == 2:
+                torque[j] = t[0]
+            elif scene.dimension == 3:
+                torque[j] = t
             else:
-                self.torque0[ld.body][2] += float(ld.torque[0])
-        acted = {i for i, _, _ in self.drag} | {ld.body for ld in eff.loads}
-        for a, _, b, _, _, _, _, _ in self.springs:
-            acted |= {a} if b is None else {a, b}
-        self.acted = sorted(acted)  # bodies that get a force or torque
-        self.active = bool(self.acted)
-
-    def __call__(self, state: dict) -> dict:
-        """{body: (com, q, v, w)} -> {body: (force, torque)} for the acted-on bodies."""
-        out = {i: ([*self.force0[i]], [*self.torque0[i]]) for i in self.acted}
-        for i, c, ca in self.drag:
-            _, _, v, w = state[i]
-            f, t = out[i]
-            for k in range(3):
-                f[k] -= c * v[k]
-                t[k] -= ca * w[k]
-        for a, ra, b, rb, anchor, k, c, l0 in self.springs:
-            ca_, qa, va, wa = state[a]
-            ra_w = _rotate(qa, ra)
-            wxr = _cross(wa, ra_w)
-            pa = (ca_[0] + ra_w[0], ca_[1] + ra_w[1], ca_[2] + ra_w[2])
-            pva = (va[0] + wxr[0], va[1] + wxr[1], va[2] + wxr[2])
-            if b is None:
-                pb, pvb, rb_w = anchor, (0.0, 0.0, 0.0), None
-            else:
-                cb, qb, vb, wb = state[b]
-                rb_w = _rotate(qb, rb)
-                wxr = _cross(wb, rb_w)
-                pb = (cb[0] + rb_w[0], cb[1] + rb_w[1], cb[2] + rb_w[2])
-                pvb = (vb[0] + wxr[0], vb[1] + wxr[1], vb[2] + wxr[2])
-            d = (pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2])
-            length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            if length == 0.0:  # no direction: the spring (rest length 0 here) exerts nothing
-                continue
-            e = (d[0] / length, d[1] / length, d[2] / length)
-            rate = ((pva[0] - pvb[0]) * e[0] + (pva[1] - pvb[1]) * e[1]
-                    + (pva[2] - pvb[2]) * e[2])
-            mag = -(k * (length - l0) + c * rate)
-            fv = (mag * e[0], mag * e[1], mag * e[2])
-            f, t = out[a]
-            tq = _cross(ra_w, fv)
-            for j in range(3):
-                f[j] += fv[j]
-                t[j] += tq[j]
-            if b is not None:
-                f, t = out[b]
-                tq = _cross(rb_w, fv)
-                for j in range(3):
-                    f[j] -= fv[j]
-                    t[j] -= tq[j]
-        return out
+                torque[j, 2] = t[0]
+            acted.add(ld.body)
+        loads = Loads(body=np.array([ld.body for ld in eff.loads], dtype=np.int64),
+                      force=force, torque=torque)
+    if not acted:
+        return None
+    return springs, drag, loads, sorted(acted)
 
 
 class PybulletModel:
@@ -316,7 +269,7 @@ class PybulletModel:
         try:
             self._configure()
             self._build()
-            self.forces = _Forces(scene, self._local_offset)
+            self._init_forces()
         except BaseException:
             self.close()
             raise
@@ -613,39 +566,73 @@ class PybulletModel:
                 "out_of_plane_omega": np.hypot(w3[..., 0], w3[..., 1])}
 
     # -- stepping -------------------------------------------------------------------------
-    def _state_for_forces(self) -> dict:
-        """{body: (com, q, v, w)} of the acted-on bodies, read from PyBullet (see _Forces)."""
-        cid = self.cid
-        state = {}
-        for i in self.forces.acted:
-            uid = self.bodies[i].uid
-            if self.planar_joints:
-                (x, vx, _, _), (y, vy, _, _), (th, w, _, _) = _p.getJointStates(
-                    uid, (0, 1, 2), physicsClientId=cid)
-                state[i] = ((x, y, 0.0), (0.0, 0.0, math.sin(0.5 * th), math.cos(0.5 * th)),
-                            (vx, vy, 0.0), (0.0, 0.0, w))
-            else:
-                pos, orn = _p.getBasePositionAndOrientation(uid, physicsClientId=cid)
-                v, w = _p.getBaseVelocity(uid, physicsClientId=cid)
-                state[i] = (pos, orn, v, w)
-        return state
+    def _init_forces(self) -> None:
+        """The scene's springs, drag and loads for ``_apply_forces``: the in-house kernels' force
+        law (forces3d.accumulate; planar joints: forces2d.accumulate), its arrays and the
+        state rows and scratch it is evaluated on. ``self.forces_active`` is False without any.
+        """
+        dim = 2 if self.planar_joints else 3
+        law = _force_law(self.scene, dim,
+                         self._planar_offset if self.planar_joints else self._local_offset)
+        self.forces_active = law is not None
+        if law is None:
+            return
+        springs, drag, loads, acted = law
+        if dim == 3:
+            from crosscheck.sim.rigid.forces3d import accumulate_rows
+        else:
+            from crosscheck.sim.rigid.forces2d import accumulate_rows
+        n = len(self.bodies)
+        self._rows = np.zeros((n, 13 if dim == 3 else 6))
+        if dim == 3:
+            self._rows[:, 6] = 1.0  # a unit quaternion for the bodies never read
+            scratch = (np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
+            self._F, self._T = np.empty((n, 3)), np.empty((n, 3))
+        else:
+            scratch = (np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n))
+            self._F, self._T = np.empty((n, 2)), np.empty(n)
+        self._acted = [(i, self.bodies[i].uid) for i in acted]
+        self._law_args = (springs, drag, loads, self._rows, *scratch, self._F, self._T)
+        self._accumulate = accumulate_rows
+        self._accumulate(*self._law_args)  # compile (or load from numba's cache) now
+
+    def _planar_offset(self, body_index: int, point) -> np.ndarray:
+        """A body-frame point relative to the centre of mass (planar joints: the joint angle
+        rotates the body frame)."""
+        return np.asarray(point, float) - np.asarray(self.scene.bodies[body_index].com, float)
 
     def _apply_forces(self) -> None:
+        """Springs, drag and loads from the state PyBullet reports now, applied for one step."""
         cid = self.cid
-        state = self._state_for_forces()
-        for i, (force, torque) in self.forces(state).items():
-            uid = self.bodies[i].uid
-            if self.planar_joints:
+        rows = self._rows
+        if self.planar_joints:
+            states = _p.getJointStates
+            for i, uid in self._acted:
+                (x, vx, _, _), (y, vy, _, _), (th, w, _, _) = states(uid, (0, 1, 2), cid)
+                rows[i] = (x, y, th, vx, vy, w)
+            self._accumulate(*self._law_args)
+            forces, torques = self._F.tolist(), self._T.tolist()
+            control = _p.setJointMotorControlArray
+            for i, uid in self._acted:
                 # Joint axes through the centre of mass: the generalised forces are F_x, F_y and
                 # the torque about the centre of mass.
-                _p.setJointMotorControlArray(uid, (0, 1, 2), _p.TORQUE_CONTROL,
-                                             forces=(force[0], force[1], torque[2]),
-                                             physicsClientId=cid)
-            else:
-                # At the centre of mass PyBullet itself reports: its lever arm is exactly zero.
-                _p.applyExternalForce(uid, -1, force, state[i][0], _p.WORLD_FRAME,
-                                      physicsClientId=cid)
-                _p.applyExternalTorque(uid, -1, torque, _p.WORLD_FRAME, physicsClientId=cid)
+                control(uid, (0, 1, 2), _p.TORQUE_CONTROL,
+                        forces=(forces[i][0], forces[i][1], torques[i]), physicsClientId=cid)
+            return
+        pose, velocity = _p.getBasePositionAndOrientation, _p.getBaseVelocity
+        at = {}
+        for i, uid in self._acted:
+            pos, orn = pose(uid, cid)
+            v, w = velocity(uid, cid)
+            rows[i] = pos + orn + v + w
+            at[i] = pos
+        self._accumulate(*self._law_args)
+        forces, torques = self._F.tolist(), self._T.tolist()
+        force, torque, world = _p.applyExternalForce, _p.applyExternalTorque, _p.WORLD_FRAME
+        for i, uid in self._acted:
+            # At the centre of mass PyBullet itself reports: its lever arm is exactly zero.
+            force(uid, -1, forces[i], at[i], world, cid)
+            torque(uid, -1, torques[i], world, cid)
 
     def advance(self, nsteps: int) -> None:
         """nsteps steps (the bare stepping loop when nothing is applied per step), the client
@@ -653,7 +640,7 @@ class PybulletModel:
         14 % of a one-body step."""
         step, cid = _p.stepSimulation, self.cid
         try:
-            if not self.forces.active:
+            if not self.forces_active:
                 for _ in range(nsteps):
                     step(cid)
                 return
@@ -803,7 +790,7 @@ class PybulletModel:
                                            "note": "global to the process (ENGINES.md trap 10)"},
             "collisions": "none: no collision shapes, collision filter group and mask 0",
             "max_rotation_per_step": MAX_ROTATION_PER_STEP,
-            "forces": ("none" if not self.forces.active else
+            "forces": ("none" if not self.forces_active else
                        "TORQUE_CONTROL generalised forces per step from the start-of-step state"
                        if self.planar_joints else
                        "applyExternalForce/Torque WORLD_FRAME at the COM per step from the "

@@ -5,8 +5,9 @@ discrete scheme, symplecticity and contact flag live in :mod:`crosscheck.names` 
 engine's; this module adds what only the in-house engine has: each integrator's kernels, its
 rotation update, its force evaluations per step and a note. ``bind`` refuses a name crosscheck.names
 does not list, and tests/rigid/test_integrator_registry.py fails when a listed name has no
-kernel. Adding an integrator: its entry in crosscheck.names, one kernel (kernels3d / kernels2d /
-implicit) and one ``bind`` call here.
+kernel. Adding an integrator: its entry in crosscheck.names, one kernel per dimension (in the
+module of its family: explicit3d / explicit2d, splitting3d / splitting2d, implicit) and one
+``bind`` call here.
 
 Rotation updates (3D; in 2D the angle is a plain coordinate and every scheme is exact
 bookkeeping for it):
@@ -31,9 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from crosscheck.names import integrator_info, rigid_names
-from crosscheck.sim.rigid import implicit
-from crosscheck.sim.rigid import kernels2d as k2
-from crosscheck.sim.rigid import kernels3d as k3
+from crosscheck.sim.rigid import explicit2d, explicit3d, implicit, splitting2d, splitting3d
 
 
 @dataclass(frozen=True)
@@ -104,43 +103,45 @@ bind(
     "rk4", "renormalise", 4,
     "classical RK4 on (x, q, P, L); the quaternion takes additive stages and is renormalised "
     "once per step (an O(h^5) projection, so order 4 is kept and |q| = 1 to round-off)",
-    _kernel(k3.advance_rk4), _kernel(k2.advance_rk4))
+    _kernel(explicit3d.advance_rk4), _kernel(explicit2d.advance_rk4))
 bind(
     "rk4_exp", "exp", 4,
     "RK4 with the Runge-Kutta-Munthe-Kaas rotation update: stages and step are exponential maps "
     "q <- exp(theta) q, stage angular velocities pulled back with dexp^-1 (order 4 kept, |q| = 1 "
     "without a projection); 2D: identical to rk4",
-    _kernel(k3.advance_rk4_exp), _kernel(k2.advance_rk4))
+    _kernel(explicit3d.advance_rk4_exp), _kernel(explicit2d.advance_rk4))
 bind(
     "explicit_euler", "renormalise", 1,
     "q += h/2 (0, w) q with w at the start of the step, then renormalised (as in the seed notes); "
     "the unprojected update would grow |q| by sqrt(1 + (h|w|/2)^2) per step; tumbling energy "
     "grows at O(h)",
-    _kernel(k3.advance_explicit_euler), _kernel(k2.advance_explicit_euler))
+    _kernel(explicit3d.advance_explicit_euler), _kernel(explicit2d.advance_explicit_euler))
 bind(
     "midpoint", "renormalise", 2,
     "explicit midpoint: additive quaternion stages at h/2 and h, renormalised after the step",
-    _kernel(k3.advance_midpoint), _kernel(k2.advance_midpoint))
+    _kernel(explicit3d.advance_midpoint), _kernel(explicit2d.advance_midpoint))
 bind(
     "symplectic_euler", "splitting", 1,
     "kick P, L with the start-of-step forces, drift x with the new P and the orientation by "
     "exact sub-rotations about the principal axes with the new L (Lie-Trotter splitting of the "
     "free rotor): symplectic for rotation as well, |L| kept exactly by the drift",
-    _kernel(k3.advance_symplectic_euler), _kernel(k2.advance_symplectic_euler))
+    _kernel(splitting3d.advance_symplectic_euler),
+    _kernel(splitting2d.advance_symplectic_euler))
 bind(
     "symplectic_euler_exp", "exp", 1,
     "semi-implicit Euler as game engines do it: kick, then q <- exp(h w) q with "
     "w = I(q_n)^-1 L_(n+1). Symplectic for translation only: w depends on q, so the rotation "
     "update is explicit and a tumbling asymmetric body's energy drifts at O(h); 2D: identical "
     "to symplectic_euler (and symplectic there)",
-    _kernel(k3.advance_symplectic_euler_exp), _kernel(k2.advance_symplectic_euler))
+    _kernel(splitting3d.advance_symplectic_euler_exp),
+    _kernel(splitting2d.advance_symplectic_euler))
 bind(
     "verlet", "splitting", 2,
     "velocity Verlet: half kick, drift (orientation by the Strang splitting 1-2-3-2-1 of the "
     "free rotor into exact principal-axis rotations), half kick at the new configuration: "
     "second order, symplectic and time-reversible for the rigid body; damping forces in the "
     "closing half kick use momenta extrapolated to the step's end (keeps order 2)",
-    _kernel(k3.advance_verlet), _kernel(k2.advance_verlet))
+    _kernel(splitting3d.advance_verlet), _kernel(splitting2d.advance_verlet))
 bind(
     "implicit_euler", "exp", 1,
     "linearised backward Euler on the generalised velocities with the spring and drag "

@@ -11,7 +11,7 @@ offsets, the effect arrays); the state is the Baraff state of every body as stru
 Each effect is compiled into its own small NamedTuple of arrays, or ``None`` when the scene does
 not declare it. The numba kernels take the effects as separate arguments and test ``is None``;
 numba prunes those branches at compile time for a ``None`` argument, so the compiled step of a
-scene holds the code of its declared effects only (see kernels3d.accumulate and
+scene holds the code of its declared effects only (see forces3d.accumulate and
 benchmarks/bench_rigid.py, which measures that an undeclared effect costs nothing).
 
 Spring attachment points are stored relative to the centre of mass (``attach - com``), in the body

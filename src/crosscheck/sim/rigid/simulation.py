@@ -12,8 +12,7 @@ import time
 import numpy as np
 
 from crosscheck.scene.model import Scene
-from crosscheck.sim.rigid import kernels2d as k2
-from crosscheck.sim.rigid import kernels3d as k3
+from crosscheck.sim.rigid import forces2d, forces3d
 from crosscheck.sim.rigid.integrators import Integrator, get_integrator
 from crosscheck.sim.rigid.model import RigidModel, RigidState, compile_model
 
@@ -69,16 +68,16 @@ class RigidSimulation:
         if self.model.dimension == 3:
             vel = np.empty((n, 3))
             omega = np.empty((n, 3))
-            k3.observe(self.model.bodies, state.rot, state.P, state.L, vel, omega)
+            forces3d.observe(self.model.bodies, state.rot, state.P, state.L, vel, omega)
         else:
             vel = np.empty((n, 2))
             omega = np.empty(n)
-            k2.observe(self.model.bodies, state.P, state.L, vel, omega)
+            forces2d.observe(self.model.bodies, state.P, state.L, vel, omega)
         return state.x.copy(), state.rot.copy(), vel, omega
 
     def derivative(self, state: RigidState) -> RigidState:
         """The state derivative (v, dq/dt, F, tau) from the same kernels the integrators use."""
         dx, drot, dP, dL = (np.empty_like(a) for a in state.arrays())
-        kern = k3 if self.model.dimension == 3 else k2
+        kern = forces3d if self.model.dimension == 3 else forces2d
         kern.derivative(*self.model.kernel_args(), None, None, *state.arrays(), dx, drot, dP, dL)
         return RigidState(dx, drot, dP, dL)
