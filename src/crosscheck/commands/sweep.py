@@ -120,7 +120,7 @@ def next_probe(duration: float, stable: float | None, unstable: float | None, ca
         n = max(_steps(duration, 2 * stable), math.ceil(duration / cap - 1e-9))
         dt = duration / n
         return dt if dt > stable * (1 + 1e-9) else None
-    if (unstable - stable) / stable <= width:
+    if (unstable - stable) / stable <= width * (1 + 1e-6):
         return None
     n_s, n_u = _steps(duration, stable), _steps(duration, unstable)
     if n_s - n_u <= 1:

@@ -283,8 +283,9 @@ def _frontier(s: Series, runs: list[tuple[float, str]], cap: float | None,
     elif s.smallest_unstable_dt is not None:
         lo, hi = s.largest_stable_dt, s.smallest_unstable_dt
         s.frontier = f"between {lo:.4g} and {hi:.4g} ({(hi - lo) / lo:.1%} wide)"
-        if searched and width is not None and (hi - lo) / lo > width:
-            s.frontier += f"; wider than {width:.0%}: adjacent step counts or round limit"
+        if searched and width is not None and (hi - lo) / lo > width * (1 + 1e-6):
+            s.frontier += (f"; wider than {width:.0%}: no whole step count lies between, or the "
+                           "round limit")
     elif searched and cap is not None and s.largest_stable_dt >= cap * (1 - REL):
         s.frontier = (f">= {s.largest_stable_dt:.4g} (no failure up to the cap "
                       f"{cap:.4g} s)")
