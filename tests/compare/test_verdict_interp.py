@@ -60,6 +60,17 @@ def test_missing_metric_with_a_limit_is_an_error_with_the_reason(scene):
     assert "position_error_max" in v.reason and "reference run timeout" in v.reason
 
 
+def test_a_metric_with_nothing_to_measure_fails_saying_why(scene):
+    # A flip period of a run that never flips: physics, not a harness problem (error), and never
+    # a pass; the reason says "not measured" and why, not a number.
+    v = judge(scene, "x", "y", {"energy_drift": {"value": 0.0},
+                                "position_error_max": {"value": None,
+                                                       "not_measured": "no flip found"}})
+    assert v.status == "fail"
+    assert v.metrics["position_error_max"]["passed"] is False
+    assert "position_error_max not measured: no flip found" in v.reason
+
+
 def test_worst_metric_is_the_largest_ratio(scene):
     v = judge(scene, "x", "y", {"energy_drift": {"value": 5e-3},
                                 "position_error_max": {"value": 9e-4}})

@@ -49,11 +49,20 @@ def test_tennis_racket_rk4_conserves_and_flips_on_time():
     metrics = EXTRA_METRICS["torque_free_intermediate"](scene, traj)
     assert 7.0 < metrics["flip_period_analytic"] < 8.5
     assert metrics["flip_period_error"] < 1e-3
-    # The metric can fail: explicit Euler's rotation gains 27 % energy here and its flips come
-    # every 1.6 s (error 0.79); the explicit midpoint rule is off by 2 %.
-    for integrator, at_least in (("explicit_euler", 0.5), ("midpoint", 1e-2)):
-        other = EXTRA_METRICS["torque_free_intermediate"](scene, _run(scene, integrator, 1e-3))
-        assert other["flip_period_error"] > at_least, (integrator, other)
+    # The measurement states its own resolution: linear interpolation of the crossings between
+    # 0.01 s samples errs by 2.3e-7 s (3.0e-8 of the period), RK4's floor in a sweep.
+    assert 1e-9 < metrics["flip_period_resolution"] < 1e-7
+    # The metric can fail: the explicit midpoint rule is off by 2 %.
+    other = EXTRA_METRICS["torque_free_intermediate"](scene, _run(scene, "midpoint", 1e-3))
+    assert other["flip_period_error"] > 1e-2, other
+    # And it can have nothing to measure: explicit Euler's rotation gains energy (|w| 5 -> 8.8
+    # rad/s), the body leaves the flip for a wobble about its minor axis and the sign changes
+    # come ever faster (half periods 0.55 to 1.5 s). That is not a period; it used to be
+    # reported as an error of 0.79, identical to symplectic_euler_exp's (both rotate by h w_n
+    # with w_n = I(q_n)^-1 L, differing only by the O((h w)^3) of the exponential map).
+    other = EXTRA_METRICS["torque_free_intermediate"](scene, _run(scene, "explicit_euler", 1e-3))
+    value, reason = other["flip_period_error"]
+    assert value is None and reason.startswith("crossings not periodic"), other
 
 
 # -- symplectic against explicit Euler over 1000 periods -------------------------------------------

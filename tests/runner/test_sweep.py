@@ -21,10 +21,28 @@ from crosscheck.runner.local import LocalBackend
 from crosscheck.runner.plan import build_matrix
 from crosscheck.runner.session import run_and_report
 from crosscheck.scene.loader import load_case
-from crosscheck.study.sweep import analyse, fit_order, pareto
+from crosscheck.study.sweep import analyse, cheapest, fit_order, floor_reasons, pareto, table
 
 CASES = Path(__file__).resolve().parents[2] / "cases"
+SRC = Path(__file__).resolve().parents[2] / "src"
 HERE = Path(__file__).resolve().parent
+SWEEP_DTS = [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4]
+
+
+def synthetic(errors, *, engine="inhouse", integrator="rk4", dts=SWEEP_DTS, metric="e_error",
+              resolution=None, statuses=None, costs=None, not_measured=None):
+    """Cells of one series with the given errors (None: not measured) at the given steps."""
+    cells = []
+    for k, (dt, e) in enumerate(zip(dts, errors, strict=True)):
+        m = {metric: {"value": e, "limit": 1.0}}
+        if e is None:
+            m[metric]["not_measured"] = not_measured or "nothing to measure"
+        if resolution is not None:
+            m[metric.removesuffix("_error") + "_resolution"] = {"value": resolution}
+        cells.append({"engine": engine, "integrator": integrator, "dt": dt,
+                      "status": (statuses or ["pass"] * len(dts))[k],
+                      "cost": (costs or [1e-3 / dt * 1e-3] * len(dts))[k], "metrics": m})
+    return cells
 
 
 def test_fit_order_recovers_a_power_law_and_ignores_round_off():
@@ -57,23 +75,43 @@ def test_sweep_command_finds_the_largest_stable_step(tmp_path):
     case = write_case(tmp_path, "sweepme", integrators='{ inhouse = ["euler", "unstable"] }',
                       reference='kind = "fine-step"\nengine = "inhouse"\nintegrator = "exact"\n'
                                 'dt = 0.001', tolerances="")
-    env = dict(os.environ, PYTHONPATH=str(HERE))
+    # This checkout's code first (the subprocess must not import another checkout's crosscheck).
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(SRC), str(HERE)]))
     res = subprocess.run(
         [sys.executable, "-m", "crosscheck.cli", "sweep", str(case), "--dts",
          "0.04,0.02,0.01,0.005", "--integrators", "euler,unstable", "--out", "sw",
-         "--workers", "2", "--progress", "none",
+         "--workers", "2", "--progress", "none", "--target", "0.03", "--json",
          "--engine-ref", f"inhouse={ALL['exact']}"],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=180)
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     data = json.loads((tmp_path / "sw" / "sweep.json").read_text())
+    assert json.loads(res.stdout) == data
     series = {s["integrator"]: s for s in data["series"]}
-    # The fake 'unstable' scheme blows up above dt = 0.01: 0.01 is its largest stable step.
-    assert series["unstable"]["largest_stable_dt"] == 0.01
-    assert series["unstable"]["statuses"][:2] == ["blowup", "blowup"]
-    # Explicit Euler's free-fall lag g T h / 2 is exactly first order.
+    # The fake 'unstable' scheme blows up above dt = 0.01: 0.01 is its largest stable step,
+    # and the bisection on the number of steps (1 s / N) brackets the limit to within 5 %.
+    unstable = series["unstable"]
+    assert unstable["largest_stable_dt"] == 0.01
+    assert unstable["statuses"][:2] == ["blowup", "blowup"]
+    lo, hi = unstable["largest_stable_dt"], unstable["smallest_unstable_dt"]
+    assert lo <= 0.01 < hi and (hi - lo) / lo <= 0.05
+    assert unstable["frontier"].startswith("between 0.01 and 0.01")
+    assert {p["status"] for p in unstable["probes"]} == {"blowup"}  # all between 0.01 and 0.02
+    # Explicit Euler never blows up on a free fall: doubled from 0.04 to the cap 1 s / 10.
+    assert series["euler"]["largest_stable_dt"] == pytest.approx(0.1)
+    assert series["euler"]["smallest_unstable_dt"] is None
+    assert "no failure up to the cap 0.1" in series["euler"]["frontier"]
+    assert data["frontier"]["cap"] == pytest.approx(0.1) and data["frontier"]["width"] == 0.05
+    # Explicit Euler's free-fall lag g T h / 2 is exactly first order (sweep steps only).
     assert series["euler"]["order"] == pytest.approx(1.0, abs=1e-6)
+    assert series["euler"]["order_points"] == [0.04, 0.02, 0.01, 0.005]
+    # --target 0.03 m: the lag g T h / 2 <= 0.03 needs h <= 6.1e-3; the cheapest run that
+    # reaches it is Euler at the largest such step, 0.005 (the unstable scheme at 0.005 costs
+    # the same steps; either may win by timing, but no larger step qualifies).
+    best = data["target"]["cheapest"]
+    assert best["dt"] == 0.005 and best["error"] <= 0.03
     assert (tmp_path / "sw" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
-    assert "largest stable dt" in (tmp_path / "sw" / "sweep.md").read_text()
+    text = (tmp_path / "sw" / "sweep.md").read_text()
+    assert "stability frontier" in text and "Target `position_error_max` <= 0.03" in text
 
 
 def test_sweep_skips_metrics_that_cannot_tell_integrators_apart():
@@ -93,3 +131,73 @@ def test_sweep_skips_metrics_that_cannot_tell_integrators_apart():
     assert pick_metric(cells) == "flip_period_error"
     metric, (series,) = analyse(cells)
     assert abs(series.order - 2.0) < 1e-9  # error ~ dt^2 across the three steps
+
+
+def test_floor_detection_keeps_the_order_of_the_asymptotic_points():
+    # A fourth-order error that saturates at 3e-8 (e = C dt^4 + 3e-8): fitted over all points
+    # the slope is ~2.2; the stall (refinements that gain less than half the nominal order 4)
+    # marks the points from 1e-3 down, and the order over the others is ~4.
+    errors = [1e-5 * (d / 4e-3) ** 4 + 3e-8 for d in SWEEP_DTS]
+    assert fit_order(SWEEP_DTS, errors) < 2.5
+    _, (s,) = analyse(synthetic(errors))
+    assert s.nominal_order == 4
+    assert s.order == pytest.approx(4.0, abs=0.1)
+    assert s.order_points == [4e-3, 2e-3]
+    assert [bool(r) for r in s.floor] == [False, False, True, True, True, True]
+    assert all("stopped falling" in r for r in s.floor[2:])
+    md = table("e_error", [s])
+    assert "(floor)" in md and "left out of the order: dt=0.001: error stopped falling" in md
+    # A pre-asymptotic stretch followed by a healthy decrease is not a floor.
+    assert floor_reasons([4, 2, 1, 0.5], [1.0, 0.9, 0.06, 0.004], None, 4) == [""] * 4
+
+
+def test_a_stated_resolution_marks_the_floor_and_order_not_measurable():
+    # The metric states its resolution (flip_period_resolution for flip_period_error): errors
+    # within 10x of it are at the floor even where they still seem to fall.
+    errors = [3e-5, 1.9e-6, 2.5e-7, 6e-8, 3.1e-8, 3.0e-8]
+    _, (s,) = analyse(synthetic(errors, metric="flip_period_error", resolution=3e-8))
+    assert s.order_points == [4e-3, 2e-3]
+    assert "resolution" in s.floor[2]
+    assert s.order == pytest.approx(fit_order([4e-3, 2e-3], errors[:2]))
+    # Every point at the floor: no order, and the table says why.
+    _, (s,) = analyse(synthetic([3.0e-8] * 6, metric="flip_period_error", resolution=3e-8))
+    assert s.order is None and s.order_note == "order not measurable: floor reached"
+    assert "order not measurable: floor reached" in table("flip_period_error", [s])
+
+
+def test_an_unmeasured_metric_is_reported_as_not_measured():
+    # explicit_euler on the tennis racket: no periodic flip, so no flip-period error at all
+    # (the cell fails; it did not blow up).
+    why = "crossings not periodic (23 sign changes, half periods 0.553 to 1.47 s)"
+    cells = (synthetic([None] * 3, integrator="explicit_euler", dts=SWEEP_DTS[:3],
+                       metric="flip_period_error", statuses=["fail"] * 3, not_measured=why)
+             + synthetic([3e-5, 2e-6, 1.2e-7], dts=SWEEP_DTS[:3], metric="flip_period_error"))
+    metric, series = analyse(cells)
+    assert metric == "flip_period_error"
+    ee = next(s for s in series if s.integrator == "explicit_euler")
+    assert ee.errors == [None] * 3 and ee.not_measured == [why] * 3
+    assert ee.largest_stable_dt == 4e-3  # not measured is not unstable
+    assert ee.order is None and "not measurable" in ee.order_note
+    md = table(metric, series)
+    assert md.count("not measured: crossings not periodic") == 3
+    assert f"not measured at dt = 0.004, 0.002, 0.001: {why}" in md
+    assert pareto(series) and all(p[0] != "inhouse-explicit_euler" for p in pareto(series))
+
+
+def test_target_picks_the_cheapest_qualifying_point():
+    cells = (synthetic([1e-2, 1e-3, 1e-4], integrator="euler", dts=[4e-3, 2e-3, 1e-3],
+                       costs=[1.0, 2.0, 4.0])
+             + synthetic([5e-4, 3e-5, 2e-6], integrator="rk4", dts=[4e-3, 2e-3, 1e-3],
+                         costs=[3.0, 6.0, 12.0])
+             + synthetic([1e-6, None], integrator="fast", dts=[4e-3, 2e-3],
+                         statuses=["blowup", "pass"], costs=[0.1, 0.5]))
+    _, series = analyse(cells)
+    # <= 1e-3: euler at 2e-3 (cost 2) beats rk4 at 4e-3 (cost 3); the blown-up and the
+    # unmeasured cells never qualify however cheap.
+    assert cheapest(series, 1e-3) == {"engine": "inhouse", "integrator": "euler", "dt": 2e-3,
+                                      "error": 1e-3, "cost": 2.0}
+    assert cheapest(series, 1e-4)["integrator"] == "euler"  # cost 4 < rk4's 6
+    assert cheapest(series, 5e-5)["integrator"] == "rk4"
+    assert cheapest(series, 1e-9) is None
+    assert "none reaches it" in table("e_error", series, target=1e-9)
+    assert "cheapest is inhouse rk4 at dt = 0.002" in table("e_error", series, target=5e-5)

@@ -11,11 +11,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from crosscheck.commands._json import add_json_flag, emit, human_output
 
 ORDER = 6  # its place in crosscheck --help
+FRONTIER_WIDTH = 0.05  # stop bisecting when (unstable - stable) / stable is at most this
+FRONTIER_ROUNDS = 16  # runner rounds of doubling and bisection, all series together
+CAP_FRACTION = 0.1  # default cap of the doubling: the duration / 10
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -30,6 +34,16 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--metric", default=None,
                    help="error metric (default: position_error_max, else orientation_error_max, "
                         "else energy_drift)")
+    p.add_argument("--target", type=float, default=None, metavar="X",
+                   help="name the cheapest engine, integrator and dt whose error stays <= X")
+    p.add_argument("--max-dt", type=float, default=None, metavar="S",
+                   help="cap of the stability search (default: the duration / 10)")
+    p.add_argument("--frontier-width", type=float, default=FRONTIER_WIDTH, metavar="F",
+                   help="bisect the stability bracket until (unstable - stable) / stable <= F "
+                        f"(default {FRONTIER_WIDTH:g})")
+    p.add_argument("--frontier-rounds", type=int, default=FRONTIER_ROUNDS, metavar="N",
+                   help=f"at most N runner rounds of stability search (default {FRONTIER_ROUNDS};"
+                        " 0: none)")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="output folder (default: reports/sweep-<case>)")
     p.add_argument("--workers", type=int, default=None, metavar="N")
@@ -84,6 +98,56 @@ def run(args) -> int:
     return status
 
 
+def _steps(duration: float, dt: float) -> int:
+    return max(1, round(duration / dt))
+
+
+def next_probe(duration: float, stable: float | None, unstable: float | None, cap: float,
+               width: float) -> float | None:
+    """The next step to try for one series, or None when its frontier is settled.
+
+    Doubling while every step run is stable: ``dt = duration / N`` with ``N`` the whole number
+    of steps nearest ``duration / (2 dt)``, never above the cap. Bisection between the largest
+    stable and the smallest unstable step on the number of steps: ``N = (N_stable +
+    N_unstable) // 2``, until ``(unstable - stable) / stable <= width`` or the counts are
+    adjacent (no whole step lies between). Nothing below an unstable smallest step.
+    """
+    if stable is None:
+        return None
+    if unstable is None:
+        if stable >= cap * (1 - 1e-9):
+            return None
+        n = max(_steps(duration, 2 * stable), math.ceil(duration / cap - 1e-9))
+        dt = duration / n
+        return dt if dt > stable * (1 + 1e-9) else None
+    if (unstable - stable) / stable <= width * (1 + 1e-6):
+        return None
+    n_s, n_u = _steps(duration, stable), _steps(duration, unstable)
+    if n_s - n_u <= 1:
+        return None
+    return duration / ((n_s + n_u) // 2)
+
+
+def _probe_matrix(scene, probes, out, refs, timeout, reference_dir):
+    """One runner matrix holding just the probe cells (engine, integrator, dt)."""
+    from crosscheck.runner.plan import build_matrix
+
+    merged = None
+    for engine, integrator, dt in probes:
+        m = build_matrix([scene], engines=[engine], integrators=[f"{engine}.{integrator}"],
+                         dts=[dt], out=out, timeout=timeout, engine_refs=refs,
+                         reference_dir=reference_dir)
+        if merged is None:
+            merged = m
+            continue
+        have = {t["id"] for t in merged.tasks}
+        merged.tasks = ([t for t in merged.tasks if t["kind"] == "reference"]
+                        + [t for t in m.references if t["id"] not in have]
+                        + merged.cells + m.cells)
+        merged.engines += [e for e in m.engines if e not in merged.engines]
+    return merged
+
+
 def _run(args) -> tuple[int, dict]:
     from crosscheck.commands.run import _engine_refs
     from crosscheck.report.atomic import write_bytes, write_text
@@ -112,17 +176,64 @@ def _run(args) -> tuple[int, dict]:
         len(matrix.tasks), args.progress)
     outcome = run_and_report(matrix, backend, out, command=["crosscheck", "sweep", args.case],
                              settings={"sweep": True, "dts": dts}, progress=progress)
-    metric, series = sweep.analyse(outcome.cells, args.metric)
-    text = f"# Sweep of {scene.name}\n\n" + sweep.table(metric, series) + "\n"
+    cells = list(outcome.cells)
+    interrupted = bool(outcome.doc.get("interrupted"))
+
+    # The stability frontier: doubling past the largest stable step, then bisection of the
+    # bracket, each round one runner matrix of the cells still needed (rigid cases only: a
+    # fluid's steps are adaptive).
+    duration = scene.run.duration
+    cap = args.max_dt if args.max_dt is not None else CAP_FRACTION * duration
+    if scene.fluid is None:
+        cap = duration / math.ceil(duration / cap - 1e-9)  # a step that divides the duration
+    search = scene.fluid is None and args.frontier_rounds > 0
+    rounds = 0
+    while search and not interrupted and rounds < args.frontier_rounds:
+        _, series = sweep.analyse(cells, args.metric)
+        probes = []
+        for s in series:
+            if s.not_applicable:
+                continue
+            dt = next_probe(duration, s.largest_stable_dt, s.smallest_unstable_dt, cap,
+                            args.frontier_width)
+            if dt is not None and not any(sweep._same(dt, p) for p in
+                                          [*s.dts, *(q["dt"] for q in s.probes)]):
+                probes.append((s.engine, s.integrator, dt))
+        if not probes:
+            break
+        rounds += 1
+        where = out / "frontier" / f"round-{rounds}"
+        print(f"frontier round {rounds}: " + ", ".join(
+            f"{e}-{i}@{d:.4g}" for e, i, d in probes), flush=True)
+        m = _probe_matrix(scene, probes, where, refs, args.timeout, out / "references")
+        res = run_and_report(m, backend, where, command=["crosscheck", "sweep", args.case],
+                             settings={"sweep": True, "frontier_round": rounds})
+        cells += res.cells
+        interrupted = bool(res.doc.get("interrupted"))
+
+    metric, series = sweep.analyse(cells, args.metric, dts, cap=cap, width=args.frontier_width,
+                                   searched=search)
+    text = f"# Sweep of {scene.name}\n\n" + sweep.table(metric, series, args.target) + "\n"
+    if search:
+        text += (f"\nStability frontier: doubling from the largest stable step up to the cap "
+                 f"{cap:.4g} s, then bisection on the number of steps until the bracket is "
+                 f"within {args.frontier_width:.0%} or whole step counts are adjacent; "
+                 f"{rounds} round(s) of at most {args.frontier_rounds}; every probe's reports "
+                 f"in {out / 'frontier'}.\n")
     write_text(out / "sweep.md", text)
     summary = {"case": scene.name, "metric": metric, "dts": dts,
+               "frontier": {"searched": search, "cap": cap, "width": args.frontier_width,
+                            "rounds": rounds, "max_rounds": args.frontier_rounds},
                "series": [s.to_dict() for s in series],
                "pareto": [dict(zip(("label", "dt", "cost", "error"), p, strict=True))
                           for p in sweep.pareto(series)]}
+    if args.target is not None:
+        summary["target"] = {"value": args.target, "metric": metric,
+                             "cheapest": sweep.cheapest(series, args.target)}
     write_text(out / "sweep.json", json.dumps(summary, indent=1) + "\n")
-    write_bytes(out / "sweep.png", sweep.figure(scene.name, metric, series))
+    write_bytes(out / "sweep.png", sweep.figure(scene.name, metric, series, args.target))
     print()
     print(text)
     print(f"plots: {out / 'sweep.png'}; every cell: {out / 'index.html'}")
     # A sweep explores: blow-ups at large steps are findings, not failures.
-    return (0 if not outcome.doc.get("interrupted") else 130), summary
+    return (0 if not interrupted else 130), summary

@@ -41,7 +41,8 @@ Other
     with ``|E(t) - E(0)| > 10 E_avail`` (scales.BLOWUP_FACTOR and scales.available_energy);
     absent when the run did not blow up.
     Extra metrics of an analytic solution (``EXTRA_METRICS[name](scene, traj)``, e.g.
-    ``flip_period_error``) are added as they come.
+    ``flip_period_error``) are added as they come; one the run gives nothing to measure (no
+    flip) has value None and ``not_measured`` says why.
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ class Metric:
     meaningful: bool = True  # False: not conserved in this scene; informational only
     note: str = ""
     unit: str = ""
+    not_measured: str = ""  # the run had nothing to measure (e.g. no flip): value None, why
+
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"value": _finite_or_none(self.value)}
@@ -85,6 +88,8 @@ class Metric:
             out["note"] = self.note
         if self.unit:
             out["unit"] = self.unit
+        if self.not_measured:
+            out["not_measured"] = self.not_measured
         return out
 
 
@@ -95,9 +100,11 @@ class MetricSet:
     blowup_time: float | None = None
     blowup_reason: str | None = None
 
-    def add(self, name: str, value: float | None, *, meaningful: bool = True, note: str = ""):
+    def add(self, name: str, value: float | None, *, meaningful: bool = True, note: str = "",
+            not_measured: str = ""):
         self.metrics[name] = Metric(name, None if value is None else float(value), meaningful,
-                                    note, UNITS.get(name, ""))
+                                    note or (f"not measured: {not_measured}" if not_measured
+                                             else ""), UNITS.get(name, ""), not_measured)
 
     def add_series(self, name: str, t: np.ndarray, y: np.ndarray):
         self.series[name] = downsample(t, y)
@@ -389,7 +396,10 @@ def compute_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None = Non
     out_of_plane_metric(traj, out)
     if extra is not None:
         for name, value in extra(scene, traj).items():
-            out.add(name, value)
+            if isinstance(value, tuple):  # (None, reason): the run had nothing to measure
+                out.add(name, None, not_measured=value[1] or "not measured")
+            else:
+                out.add(name, value)
     if "blowup_time" in out.metrics:  # keep it last in reports
         out.metrics["blowup_time"] = out.metrics.pop("blowup_time")
     return out

@@ -12,7 +12,9 @@ A metric with a limit for this engine and integrator (``Tolerance.limit(engine, 
   (a reference that produced nothing, a run with no samples); the reason says so,
 * ``error`` when a tolerance names a metric this cell could not compute (a misspelt metric, a
   reference that failed or defines no such quantity) -- a case or harness problem, not physics,
-* ``fail`` when any limited metric exceeds its limit (a NaN or infinite value exceeds any),
+* ``fail`` when any limited metric exceeds its limit (a NaN or infinite value exceeds any) or
+  was not measured because the run gave it nothing to measure (``not_measured``: a flip period
+  of a run that never flips; the reason says "not measured: why"),
 * ``pass`` otherwise (including a case with no tolerances: its metrics are only reported).
 
 A limit on a metric that is not meaningful in this scene (energy drift with drag) is ignored and
@@ -77,6 +79,12 @@ def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[st
         if limit is None or name == "blowup_time":
             continue
         entry = out.get(name)
+        if entry is not None and entry.get("not_measured"):
+            # The run gave the metric nothing to measure (a flip period without flips): physics,
+            # not a harness problem, and never a pass.
+            entry.update(limit=limit, passed=False)
+            failed.append(name)
+            continue
         if entry is None or (entry.get("value") is None and "value_text" not in entry):
             note = f"tolerance {limit:g} given but the metric was not computed"
             if missing_reason:
@@ -122,7 +130,9 @@ def judge(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[st
             reason += f" ({missing_reason})"
     elif failed:
         status = "fail"
-        reason = "; ".join(f"{n} = {_fmt(_numeric(out[n]))} > {out[n]['limit']:g}"
+        reason = "; ".join(f"{n} not measured: {out[n]['not_measured']}"
+                           if out[n].get("not_measured")
+                           else f"{n} = {_fmt(_numeric(out[n]))} > {out[n]['limit']:g}"
                            for n in failed)
     else:
         status, reason = "pass", ""

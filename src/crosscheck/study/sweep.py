@@ -6,19 +6,28 @@ cell is isolated and judged as usual), per engine and integrator:
 * **error** at each step: the chosen metric (``--metric``; by default the first of
   :data:`DEFAULT_METRICS`, then the metrics the case sets limits on, that is *informative*: above
   :data:`ERROR_FLOOR` in some stable cell. A torque-free body's centre of mass never moves, so
-  its position error is zero at every step and says nothing about the integrators);
-* **cost**: wall seconds of stepping per simulated second;
+  its position error is zero at every step and says nothing about the integrators). A stable
+  cell whose metric had nothing to measure (``not_measured``, e.g. a flip period of a run that
+  never flips) is reported as "not measured: why", never as a number;
+* **cost**: wall seconds of stepping per simulated second (the minimum of the timed repetitions,
+  docs/metrics.md "Cost");
+* **floor**: a point whose error is limited by the measurement rather than by the step is left
+  out of the order, with the reason (:func:`floor_reasons`): round-off (``error <=``
+  :data:`ERROR_FLOOR`), the metric's own stated resolution (a ``<base>_resolution`` metric next
+  to ``<base>_error``, or ``<metric>_resolution``: errors within :data:`RESOLUTION_FACTOR` of it),
+  or a generic stall (from some step down to the smallest, every refinement lowered the error
+  by less than half the integrator's nominal order, crosscheck.names, predicts);
 * **empirical order of convergence**: the least-squares slope ``p`` of ``log(error)`` against
-  ``log(dt)`` over the steps that stayed stable and whose error lies above the round-off floor
-  (``error > 1e-12`` times the metric's scale is not known here, so an absolute floor
-  :data:`ERROR_FLOOR` is used) -- for a method of order ``p``, ``error ~ C dt^p``. Pairwise orders
-  ``log(e_k / e_{k+1}) / log(dt_k / dt_{k+1})`` are reported too, since a slope over a range
-  where the error saturates or the asymptotic regime has not started is misleading;
-* **largest stable step**: the largest step such that it and every smaller step swept did not
-  blow up (status other than ``blowup``, ``error`` and ``timeout``).
+  ``log(dt)`` over the stable, measured points above the floor (the *asymptotic points*, listed
+  in ``order_points``); with fewer than two, "order not measurable" and why. Pairwise orders
+  ``log(e_k / e_{k+1}) / log(dt_k / dt_{k+1})`` over all measured points are reported too;
+* **largest stable step** and the **stability frontier**: the largest step such that it and
+  every smaller step run did not blow up (status ``blowup``, ``error`` or ``timeout``), and the
+  smallest unstable step above it, over the sweep's steps and the frontier probes the command
+  adds (crosscheck.commands.sweep: doubling, then bisection on the number of steps).
 
 The Pareto front (error against cost, across all engines and integrators) is the set of points
-no other point beats in both; the plot marks it.
+no other point beats in both; the plot marks it. :func:`cheapest` answers ``--target X``.
 """
 
 from __future__ import annotations
@@ -29,10 +38,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 ERROR_FLOOR = 1e-13
+# An error within this factor of the metric's stated resolution is at the metric's floor.
+RESOLUTION_FACTOR = 10.0
 DEFAULT_METRICS = ("position_error_max", "orientation_error_max", "angular_velocity_error_max",
                    "velocity_error_max")
 CONSERVATION_METRICS = ("energy_drift", "angular_momentum_drift", "linear_momentum_drift")
 UNSTABLE = frozenset({"blowup", "error", "timeout"})
+REL = 1e-9  # two steps within this relative difference are the same step
 
 
 @dataclass
@@ -43,9 +55,18 @@ class Series:
     errors: list[float | None] = field(default_factory=list)
     costs: list[float | None] = field(default_factory=list)
     statuses: list[str] = field(default_factory=list)
+    not_measured: list[str] = field(default_factory=list)  # per point: why, "" when measured
+    resolutions: list[float | None] = field(default_factory=list)
+    floor: list[str] = field(default_factory=list)  # per point: why it is at the floor, or ""
+    nominal_order: int | None = None
     order: float | None = None
+    order_points: list[float] = field(default_factory=list)  # the dts the order is fitted on
+    order_note: str = ""
     pairwise: list[float | None] = field(default_factory=list)
     largest_stable_dt: float | None = None
+    smallest_unstable_dt: float | None = None  # above largest_stable_dt (the frontier bracket)
+    frontier: str = ""  # the frontier in words
+    probes: list[dict[str, Any]] = field(default_factory=list)  # frontier cells: dt, status, ...
     not_applicable: str | None = None
 
     @property
@@ -100,40 +121,203 @@ def fit_order(dts: list[float], errors: list[float]) -> float | None:
     return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx
 
 
-def analyse(cells: list[dict[str, Any]], metric: str | None = None
+def pairwise_order(d1: float, e1: float, d2: float, e2: float) -> float | None:
+    if e1 > 0 and e2 > 0 and d1 != d2:
+        return math.log(e1 / e2) / math.log(d1 / d2)
+    return None
+
+
+def floor_reasons(dts: list[float], errors: list[float],
+                  resolutions: list[float | None] | None = None,
+                  nominal: int | None = None) -> list[str]:
+    """Per point (steps in decreasing order, every error measured): why its error is at the
+    metric's floor rather than set by the step, or "" for an asymptotic point.
+
+    * round-off: ``error <= ERROR_FLOOR``;
+    * resolution: ``error <= RESOLUTION_FACTOR * resolution`` (the metric states it);
+    * stall: the smallest k such that every refinement from point k down to the smallest step
+      has a pairwise order below ``nominal / 2`` (the error fell by less than the square root of
+      the ``(dt_k / dt_k+1)^p`` the method's nominal order predicts; without a nominal order,
+      below 1/4): points k .. last are at the floor. A floor is reached at the small-step end
+      and stays, so a slow stretch followed by a healthy decrease (a pre-asymptotic range) is
+      not a floor.
+    """
+    n = len(dts)
+    out = [""] * n
+    res = list(resolutions or [None] * n)
+    for k, e in enumerate(errors):
+        if e <= ERROR_FLOOR:
+            out[k] = f"round-off (error <= {ERROR_FLOOR:g})"
+        elif res[k] is not None and e <= RESOLUTION_FACTOR * res[k]:
+            out[k] = (f"within {RESOLUTION_FACTOR:g}x of the metric's resolution "
+                      f"{res[k]:.2g}")
+    threshold = nominal / 2 if nominal else 0.25
+    start = None
+    for k in range(n - 2, -1, -1):
+        p = pairwise_order(dts[k], errors[k], dts[k + 1], errors[k + 1])
+        if p is not None and p >= threshold:
+            break
+        start = k
+    if start is not None:
+        for k in range(start, n):
+            if not out[k]:
+                p = pairwise_order(dts[k - 1], errors[k - 1], dts[k], errors[k]) if k else None
+                left = (f"order {p:.2f} from the previous step" if p is not None
+                        else "the error stopped falling")
+                out[k] = (f"error stopped falling ({left}; refinements below it reach less "
+                          f"than half the nominal order {nominal})" if nominal else
+                          f"error stopped falling ({left})")
+    return out
+
+
+def _same(a: float, b: float) -> bool:
+    return abs(a - b) <= REL * max(abs(a), abs(b))
+
+
+def _resolution_of(metrics: dict[str, Any], metric: str) -> float | None:
+    names = [f"{metric}_resolution"]
+    if metric.endswith("_error"):
+        names.insert(0, metric[: -len("_error")] + "_resolution")
+    for name in names:
+        v = (metrics.get(name) or {}).get("value")
+        if isinstance(v, int | float) and math.isfinite(v) and v > 0:
+            return float(v)
+    return None
+
+
+def _nominal_order(engine: str, integrator: str) -> int | None:
+    from crosscheck.names import integrator_info
+
+    try:
+        return integrator_info(engine, integrator).order
+    except KeyError:
+        return None
+
+
+def analyse(cells: list[dict[str, Any]], metric: str | None = None,
+            sweep_dts: list[float] | None = None, *, cap: float | None = None,
+            width: float | None = None, searched: bool = False
             ) -> tuple[str | None, list[Series]]:
-    """Group one case's cells by engine and integrator into convergence series."""
+    """Group one case's cells by engine and integrator into convergence series.
+
+    ``sweep_dts``: the sweep's steps; cells at other steps are frontier probes (``Series.probes``)
+    that count for the stability frontier and :func:`cheapest` but not for the order. ``cap``,
+    ``width`` and ``searched`` describe the frontier search for the words of ``frontier``.
+    """
     metric = pick_metric(cells, metric)
     groups: dict[tuple[str, str], Series] = {}
+    everything: dict[tuple[str, str], list[tuple[float, str]]] = {}
     for c in sorted(cells, key=lambda c: (c["engine"], c["integrator"], -c["dt"])):
         key = (c["engine"], c["integrator"])
         s = groups.setdefault(key, Series(*key))
         if c["status"] == "not_applicable":
             s.not_applicable = c.get("reason") or "not applicable"
             continue
-        m = (c.get("metrics") or {}).get(metric or "", {})
-        s.dts.append(float(c["dt"]))
-        s.errors.append(m.get("value") if c["status"] not in UNSTABLE else None)
+        metrics = c.get("metrics") or {}
+        m = metrics.get(metric or "", {})
+        stable = c["status"] not in UNSTABLE
+        error = m.get("value") if stable else None
+        why = (m.get("not_measured") or "") if stable and error is None else ""
+        dt = float(c["dt"])
+        everything.setdefault(key, []).append((dt, c["status"]))
+        if sweep_dts is not None and not any(_same(dt, d) for d in sweep_dts):
+            s.probes.append({"dt": dt, "status": c["status"], "error": error,
+                             "not_measured": why, "cost": c.get("cost")})
+            continue
+        s.dts.append(dt)
+        s.errors.append(error)
         s.costs.append(c.get("cost"))
         s.statuses.append(c["status"])
-    for s in groups.values():
-        stable = [st not in UNSTABLE for st in s.statuses]
-        s.largest_stable_dt = None
-        # Steps are in decreasing order: the largest stable step has every smaller one stable.
-        for i in range(len(s.dts)):
-            if all(stable[i:]):
-                s.largest_stable_dt = s.dts[i]
-                break
-        ok = [(d, e) for d, e, st in zip(s.dts, s.errors, stable, strict=True)
-              if st and e is not None]
-        s.order = fit_order([d for d, _ in ok], [e for _, e in ok])
-        s.pairwise = []
-        for (d1, e1), (d2, e2) in zip(ok[:-1], ok[1:], strict=True):
-            if e1 > ERROR_FLOOR and e2 > ERROR_FLOOR and d1 != d2:
-                s.pairwise.append(math.log(e1 / e2) / math.log(d1 / d2))
-            else:
-                s.pairwise.append(None)
+        s.not_measured.append(why)
+        s.resolutions.append(_resolution_of(metrics, metric or "") if stable else None)
+    for key, s in groups.items():
+        s.nominal_order = _nominal_order(*key)
+        _frontier(s, sorted(everything.get(key, []), reverse=True), cap, width, searched)
+        _order(s)
     return metric, list(groups.values())
+
+
+def _order(s: Series) -> None:
+    idx = [k for k, (st, e) in enumerate(zip(s.statuses, s.errors, strict=True))
+           if st not in UNSTABLE and e is not None]
+    dts = [s.dts[k] for k in idx]
+    errs = [s.errors[k] for k in idx]
+    reasons = floor_reasons(dts, errs, [s.resolutions[k] for k in idx], s.nominal_order)
+    s.floor = [""] * len(s.dts)
+    for k, r in zip(idx, reasons, strict=True):
+        s.floor[k] = r
+    s.pairwise = [pairwise_order(d1, e1, d2, e2) for d1, e1, d2, e2 in
+                  zip(dts[:-1], errs[:-1], dts[1:], errs[1:], strict=True)]
+    use = [(d, e) for d, e, r in zip(dts, errs, reasons, strict=True) if not r]
+    s.order_points = [d for d, _ in use]
+    s.order = fit_order([d for d, _ in use], [e for _, e in use]) if len(use) >= 2 else None
+    if s.order is None:
+        s.order_points = []
+        if any(reasons):
+            s.order_note = "order not measurable: floor reached"
+        elif not s.dts:
+            s.order_note = ""
+        else:
+            s.order_note = "order not measurable: fewer than two measured stable steps"
+    else:
+        s.order_note = ""
+
+
+def _frontier(s: Series, runs: list[tuple[float, str]], cap: float | None,
+              width: float | None, searched: bool) -> None:
+    """Largest stable step (it and every smaller step run stable), the smallest unstable step
+    above it, and the frontier in words."""
+    s.largest_stable_dt = s.smallest_unstable_dt = None
+    if not runs:
+        return
+    stable = [st not in UNSTABLE for _, st in runs]  # runs: decreasing dt
+    for i in range(len(runs)):
+        if all(stable[i:]):
+            s.largest_stable_dt = runs[i][0]
+            if i > 0:
+                s.smallest_unstable_dt = runs[i - 1][0]
+            break
+    if s.largest_stable_dt is None:
+        s.smallest_unstable_dt = runs[-1][0]
+        s.frontier = f"< {runs[-1][0]:.4g} (unstable at every step run)"
+    elif s.smallest_unstable_dt is not None:
+        lo, hi = s.largest_stable_dt, s.smallest_unstable_dt
+        s.frontier = f"between {lo:.4g} and {hi:.4g} ({(hi - lo) / lo:.1%} wide)"
+        if searched and width is not None and (hi - lo) / lo > width * (1 + 1e-6):
+            s.frontier += (f"; wider than {width:.0%}: no whole step count lies between, or the "
+                           "round limit")
+    elif searched and cap is not None and s.largest_stable_dt >= cap * (1 - REL):
+        s.frontier = (f">= {s.largest_stable_dt:.4g} (no failure up to the cap "
+                      f"{cap:.4g} s)")
+    elif searched:
+        s.frontier = (f">= {s.largest_stable_dt:.4g} (no failure up to the largest step "
+                      "tried; the round limit stopped the search)")
+    else:
+        s.frontier = f">= {s.largest_stable_dt:.4g} (no failure up to the largest step run)"
+
+
+def points(s: Series) -> list[dict[str, Any]]:
+    """Every run of a series, sweep steps and frontier probes: dt, status, error, cost."""
+    out = [{"dt": d, "status": st, "error": e, "cost": c, "not_measured": nm}
+           for d, st, e, c, nm in zip(s.dts, s.statuses, s.errors, s.costs, s.not_measured,
+                                      strict=True)]
+    return out + list(s.probes)
+
+
+def cheapest(series: list[Series], target: float) -> dict[str, Any] | None:
+    """The cheapest stable run whose measured error is at most ``target``: engine,
+    integrator, dt, error, cost (wall s per simulated s); None when no run reaches it."""
+    best = None
+    for s in series:
+        for p in points(s):
+            e, c = p["error"], p["cost"]
+            if (p["status"] in UNSTABLE or e is None or not math.isfinite(e) or e > target
+                    or c is None or c <= 0):
+                continue
+            if best is None or c < best["cost"]:
+                best = {"engine": s.engine, "integrator": s.integrator, "dt": p["dt"],
+                        "error": e, "cost": c}
+    return best
 
 
 def pareto(series: list[Series]) -> list[tuple[str, float, float, float]]:
@@ -146,8 +330,10 @@ def pareto(series: list[Series]) -> list[tuple[str, float, float, float]]:
     return sorted(front, key=lambda p: p[2])
 
 
-def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
-    """PNG: error against cost (Pareto), and error against dt (convergence)."""
+def figure(case: str, metric: str | None, series: list[Series],
+           target: float | None = None) -> bytes:
+    """PNG: error against cost (Pareto), and error against dt (convergence). Points at the
+    metric's floor are hollow; each series' stability bracket is a bar on the dt axis."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -158,37 +344,62 @@ def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12.5, 4.6))
     markers = "osD^v<>ph"
     per_engine: dict[str, int] = {}
+    brackets = []
     for s in series:
         k = per_engine.get(s.engine, 0)
         per_engine[s.engine] = k + 1
         color = ENGINE_COLORS.get(s.engine, "#555555")
-        pts = [(d, c, max(e, FLOOR)) for d, c, e in zip(s.dts, s.costs, s.errors, strict=True)
+        style = dict(color=color, linestyle=STYLES[k % len(STYLES)], markersize=4)
+        marker = markers[k % len(markers)]
+        if s.smallest_unstable_dt is not None and s.largest_stable_dt is not None:
+            brackets.append((s, color, marker))
+        pts = [(d, c, max(e, FLOOR), bool(f)) for d, c, e, f in
+               zip(s.dts, s.costs, s.errors, s.floor or [""] * len(s.dts), strict=True)
                if e is not None]
         if not pts:
             continue
         label = s.label + (f" (p={s.order:.2f})" if s.order is not None else "")
-        cost_pts = [(c, e) for _, c, e in pts if c is not None and c > 0]
-        if cost_pts:
-            ax1.plot([c for c, _ in cost_pts], [e for _, e in cost_pts], color=color,
-                     linestyle=STYLES[k % len(STYLES)], marker=markers[k % len(markers)],
-                     markersize=4, label=label)
-        ax2.plot([d for d, _, _ in pts], [e for _, _, e in pts], color=color,
-                 linestyle=STYLES[k % len(STYLES)], marker=markers[k % len(markers)],
-                 markersize=4, label=label)
+        for ax, xs in ((ax1, [c for _, c, _, _ in pts]), (ax2, [d for d, _, _, _ in pts])):
+            keep = [(x, e, f) for x, (_, _, e, f) in zip(xs, pts, strict=True)
+                    if x is not None and x > 0]
+            if not keep:
+                continue
+            ax.plot([x for x, _, _ in keep], [e for _, e, _ in keep], marker="none",
+                    label=label, **style)
+            filled = [(x, e) for x, e, f in keep if not f]
+            hollow = [(x, e) for x, e, f in keep if f]
+            if filled:
+                ax.plot(*zip(*filled, strict=True), linestyle="none", marker=marker,
+                        color=color, markersize=4)
+            if hollow:
+                ax.plot(*zip(*hollow, strict=True), linestyle="none", marker=marker,
+                        markerfacecolor="none", markeredgecolor=color, markersize=5)
     front = pareto(series)
     if front:
         ax1.plot([p[2] for p in front], [max(p[3], FLOOR) for p in front], color="k",
                  linewidth=2.5, alpha=0.25, label="Pareto front")
+    if target is not None:
+        ax1.axhline(target, color="k", linestyle=":", linewidth=1, label=f"target {target:g}")
     for ax, xlabel in ((ax1, "cost: wall s per simulated s"), (ax2, "dt (s)")):
         log_axes(ax)
         ax.set_xlabel(xlabel, fontsize=8)
         ax.set_ylabel(metric or "error", fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=7)
-    ax1.set_title("accuracy against cost", fontsize=9)
-    ax2.set_title("convergence (slope = order)", fontsize=9)
+    # Stability brackets: a bar from the largest stable to the smallest unstable step, stacked
+    # at the bottom of the convergence panel in axes coordinates (they share the dt axis).
+    if brackets:
+        trans = ax2.get_xaxis_transform()
+        for j, (s, color, _marker) in enumerate(brackets):
+            y = 0.03 + 0.035 * j
+            ax2.plot([s.largest_stable_dt, s.smallest_unstable_dt], [y, y], transform=trans,
+                     color=color, linewidth=3, solid_capstyle="butt")
+            ax2.plot([s.smallest_unstable_dt], [y], transform=trans, marker="x", color=color,
+                     markersize=5)
+    ax1.set_title("accuracy against cost (hollow: at the metric's floor)", fontsize=9)
+    ax2.set_title("convergence (slope = order; bars: stable .. unstable step)", fontsize=9)
     if ax2.get_legend_handles_labels()[0]:
-        ax2.legend(fontsize=6, loc="best")
+        ax2.legend(fontsize=6, loc="upper left")
     fig.suptitle(f"{case}: sweep", fontsize=10)
     fig.tight_layout()
     buf = io.BytesIO()
@@ -197,32 +408,69 @@ def figure(case: str, metric: str | None, series: list[Series]) -> bytes:
     return buf.getvalue()
 
 
-def _stable(largest: float | None, dts: list[float]) -> str:
-    if largest is None:
-        return "none"
-    # Stable at the largest step swept: the frontier lies beyond the sweep.
-    return f">= {largest:g}" if dts and largest == dts[0] else f"{largest:g}"
+def _short(reason: str) -> str:
+    return reason.split(" (")[0][:40]
 
 
-def table(metric: str | None, series: list[Series]) -> str:
-    """Markdown: per engine and integrator the errors per step, order, largest stable step."""
+def table(metric: str | None, series: list[Series], target: float | None = None) -> str:
+    """Markdown: per engine and integrator the errors per step, the order over the asymptotic
+    points, the stability frontier; then the notes (left-out points, unmeasured cells, probes)
+    and the answer to ``--target``."""
     dts = sorted({d for s in series for d in s.dts}, reverse=True)
     head = ("| engine-integrator | " + " | ".join(f"dt={d:g}" for d in dts)
-            + " | order | pairwise | largest stable dt |")
-    lines = [f"Error metric: `{metric}`", "", head, "|" + "---|" * (len(dts) + 4)]
+            + " | order (asymptotic points) | pairwise | stability frontier (dt) |")
+    lines = [f"Error metric: `{metric}`. `(floor)`: at the metric's floor, left out of the "
+             "order (see the notes).", "", head, "|" + "---|" * (len(dts) + 4)]
+    notes: list[str] = []
     for s in series:
         if s.not_applicable:
             lines.append(f"| {s.label} | " + " | ".join("" for _ in dts)
                          + f" | n/a | | {s.not_applicable[:60]} |")
             continue
-        by_dt = dict(zip(s.dts, zip(s.errors, s.statuses, strict=True), strict=True))
+        by_dt = {d: k for k, d in enumerate(s.dts)}
         cells = []
         for d in dts:
-            e, st = by_dt.get(d, (None, ""))
-            cells.append(st.upper() if st in UNSTABLE else ("" if e is None else f"{e:.3g}"))
+            k = by_dt.get(d)
+            if k is None:
+                cells.append("")
+                continue
+            st, e = s.statuses[k], s.errors[k]
+            if st in UNSTABLE:
+                cells.append(st.upper())
+            elif e is None:
+                why = s.not_measured[k] if k < len(s.not_measured) else ""
+                cells.append(f"not measured: {_short(why)}" if why else "not measured")
+            else:
+                cells.append(f"{e:.3g}" + (" (floor)" if s.floor and s.floor[k] else ""))
         pw = ", ".join("-" if p is None else f"{p:.2f}" for p in s.pairwise)
-        lines.append(f"| {s.label} | " + " | ".join(cells)
-                     + f" | {'' if s.order is None else f'{s.order:.2f}'} | {pw} | "
-                     + _stable(s.largest_stable_dt, dts)
-                     + " |")
+        if s.order is not None:
+            order = (f"{s.order:.2f} (dt " + ", ".join(f"{d:g}" for d in s.order_points) + ")")
+        else:
+            order = s.order_note
+        lines.append(f"| {s.label} | " + " | ".join(cells) + f" | {order} | {pw} | "
+                     + s.frontier + " |")
+        left = [f"dt={d:g}: {r}" for d, r in zip(s.dts, s.floor, strict=True) if r]
+        if left:
+            notes.append(f"- {s.label}: left out of the order: " + "; ".join(left))
+        unmeasured = sorted({r for r in s.not_measured if r})
+        for r in unmeasured:
+            at = [f"{d:g}" for d, x in zip(s.dts, s.not_measured, strict=True) if x == r]
+            notes.append(f"- {s.label}: not measured at dt = {', '.join(at)}: {r}")
+        if s.probes:
+            notes.append(f"- {s.label}: frontier probes: " + ", ".join(
+                f"{p['dt']:.4g} {p['status']}" for p in s.probes))
+    if notes:
+        lines += ["", "Notes:", "", *notes]
+    if target is not None:
+        lines += ["", target_text(metric, series, target)]
     return "\n".join(lines)
+
+
+def target_text(metric: str | None, series: list[Series], target: float) -> str:
+    best = cheapest(series, target)
+    if best is None:
+        return (f"Target `{metric}` <= {target:g}: none reaches it (no stable run with a "
+                "measured error at or below it).")
+    return (f"Target `{metric}` <= {target:g}: cheapest is {best['engine']} "
+            f"{best['integrator']} at dt = {best['dt']:.4g} (error {best['error']:.3g}, "
+            f"cost {best['cost']:.3g} wall s per simulated s).")
