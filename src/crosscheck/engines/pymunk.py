@@ -2,8 +2,12 @@
 
 Model (docs/engines.md, section Pymunk)
 ---------------------------------------
-* One ``pymunk.Body(mass, moment)`` per scene body, no shapes (nothing collides; a shape with a
-  mass or density would also recompute the body's mass, moment and centre of gravity). Set in this
+* One ``pymunk.Body(mass, moment)`` per scene body. Without ``[effects] contact`` it has no shape
+  (nothing collides). With contact each body gets one shape of mass 0 and density 0 (a shape with
+  either would recompute the body's mass, moment and centre of gravity), statics get shapes on
+  ``space.static_body`` and the ground is a solid quadrilateral; one collision handler per pair
+  gives the pair's friction and restitution (``_add_contact``; docs/engines.md, Pymunk,
+  "Contact"). Set in this
   order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
   body-frame origin (Chipmunk rotates about the centre of gravity and places it from the
   position), ``velocity`` = the centre-of-gravity velocity, ``angular_velocity``. ``moment`` is
@@ -35,8 +39,11 @@ Stepping and recording (docs/engines.md, section Pymunk, has the measurements)
 A step is Chipmunk's ``cpSpaceStep(space, dt)``, called directly. ``Space.step`` wraps exactly
 that call in Python bookkeeping (it checks bodies added since the last step, locks the space
 for callbacks, then adds/removes objects queued during the step and runs post-step callbacks):
-this adapter adds nothing after building, queues nothing and registers no callback, so the
-direct call is the same step at a quarter of the cost (0.17 instead of 0.68 us). Without
+this adapter adds nothing after building, queues nothing and registers no post-step callback
+(its collision handlers only set arbiter values, which needs no lock), so the direct call is the
+same step at a quarter of the cost (0.17 instead of 0.68 us). The handlers are cffi callbacks
+Chipmunk calls from inside ``cpSpaceStep``, also when the compiled loop calls it (they take the
+GIL themselves; a test checks the compiled and Python loops give the same bits). Without
 per-step forces the steps and the per-sample reads (the C getters ``cpBodyLocalToWorld`` of the
 centre of gravity, ``cpBodyGetVelocity``, ``cpBodyGetAngle``, ``cpBodyGetAngularVelocity``, as
 pymunk's properties call them) run in a compiled loop (``engines/_native.py``) that calls the
