@@ -2,8 +2,12 @@
 
 Model (docs/engines.md, section Pymunk)
 ---------------------------------------
-* One ``pymunk.Body(mass, moment)`` per scene body, no shapes (nothing collides; a shape with a
-  mass or density would also recompute the body's mass, moment and centre of gravity). Set in this
+* One ``pymunk.Body(mass, moment)`` per scene body. Without ``[effects] contact`` it has no shape
+  (nothing collides). With contact each body gets one shape of mass 0 and density 0 (a shape with
+  either would recompute the body's mass, moment and centre of gravity), statics get shapes on
+  ``space.static_body`` and the ground is a solid quadrilateral; one collision handler per pair
+  gives the pair's friction and restitution (``_add_contact``; docs/engines.md, Pymunk,
+  "Contact"). Set in this
   order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
   body-frame origin (Chipmunk rotates about the centre of gravity and places it from the
   position), ``velocity`` = the centre-of-gravity velocity, ``angular_velocity``. ``moment`` is
@@ -35,8 +39,11 @@ Stepping and recording (docs/engines.md, section Pymunk, has the measurements)
 A step is Chipmunk's ``cpSpaceStep(space, dt)``, called directly. ``Space.step`` wraps exactly
 that call in Python bookkeeping (it checks bodies added since the last step, locks the space
 for callbacks, then adds/removes objects queued during the step and runs post-step callbacks):
-this adapter adds nothing after building, queues nothing and registers no callback, so the
-direct call is the same step at a quarter of the cost (0.17 instead of 0.68 us). Without
+this adapter adds nothing after building, queues nothing and registers no post-step callback
+(its collision handlers only set arbiter values, which needs no lock), so the direct call is the
+same step at a quarter of the cost (0.17 instead of 0.68 us). The handlers are cffi callbacks
+Chipmunk calls from inside ``cpSpaceStep``, also when the compiled loop calls it (they take the
+GIL themselves; a test checks the compiled and Python loops give the same bits). Without
 per-step forces the steps and the per-sample reads (the C getters ``cpBodyLocalToWorld`` of the
 centre of gravity, ``cpBodyGetVelocity``, ``cpBodyGetAngle``, ``cpBodyGetAngularVelocity``, as
 pymunk's properties call them) run in a compiled loop (``engines/_native.py``) that calls the
@@ -81,10 +88,29 @@ INTEGRATOR_NOTES = {
 
 # Engine options a case may pin in [engine_options.pymunk].
 OPTIONS: dict[str, tuple[str, Any]] = {
-    "iterations": ("a positive integer (constraint solver iterations, Chipmunk default 10)", None),
+    "iterations": ("a positive integer (constraint solver iterations; Chipmunk's default 10, "
+                   "the adapter's 50 or 100 in contact scenes)", None),
+    "collision_slop": ("a positive number, m (allowed penetration; Chipmunk's default 0.1, "
+                       "the adapter's 1e-5)", None),
 }
 
 _SHAPES = ("circle", "box", "polygon")
+
+# Contact settings (docs/engines.md, Pymunk, "Contact"; measured in benchmarks/contact_pymunk.py).
+# collision_slop is the depth a resting contact keeps (CONTACTS.md C15): Chipmunk's 0.1 m leaves
+# an inelastic disk at its impact depth, v dt; 1e-5 m leaves 0.0088 mm. Iterations: the PGS
+# solver's convergence on a heavy body on a light one depends on the count (C18).
+CONTACT_SLOP = 1e-5
+CONTACT_ITERATIONS = 50
+CONTACT_ITERATIONS_HEAVY = 100  # when the largest body mass ratio is >= HEAVY_RATIO
+HEAVY_RATIO = 100.0
+# The ground is a solid quadrilateral whose top edge is the ground line: GROUND_EXTENT m either
+# side of the point of the line nearest the origin, and as deep (results do not change between
+# 1e3 and 1e5 m; a Segment drifts a resting disk by 1e-13 to 5e-11 m growing with its length).
+GROUND_EXTENT = 1e4
+# A pair whose initial gap is within this of zero starts "touching": Chipmunk makes no contact at
+# distance 0 (strict inequality, CONTACTS.md C17), so the pair stays apart unless pressed.
+TOUCHING = 1e-12
 
 
 def engine_options(scene: Scene) -> dict[str, Any]:
@@ -96,10 +122,76 @@ def engine_options(scene: Scene) -> dict[str, Any]:
             raise CaseError(scene.source, field,
                             f"one of the Pymunk adapter's options {sorted(OPTIONS)}",
                             f"unknown option {key!r}")
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if key == "iterations":
+            ok = not isinstance(value, bool) and isinstance(value, int) and value >= 1
+        else:
+            ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+                  and 0.0 < value < math.inf)
+        if not ok:
             raise CaseError(scene.source, field, OPTIONS[key][0], value)
         out[key] = value
     return out
+
+
+def contact_iterations(scene: Scene) -> tuple[int, str]:
+    """The PGS iteration count for a contact scene and why (CONTACTS.md C18, recipe P3/P4)."""
+    masses = [float(b.mass) for b in scene.bodies]
+    ratio = max(masses) / min(masses)
+    if ratio >= HEAVY_RATIO:
+        return CONTACT_ITERATIONS_HEAVY, (f"largest body mass ratio {ratio:.4g} >= "
+                                          f"{HEAVY_RATIO:g}")
+    return CONTACT_ITERATIONS, f"largest body mass ratio {ratio:.4g} < {HEAVY_RATIO:g}"
+
+
+def _set_pair_values(arbiter, space, data) -> None:
+    """pre_solve of every colliding pair: Chipmunk recomputes the arbiter's friction and
+    restitution as the product of the two shapes' values at every step (cpArbiterUpdate), before
+    this runs; the pair's own values replace them before the solver uses them."""
+    arbiter.friction = data[0]
+    arbiter.restitution = data[1]
+
+
+def _never(arbiter, space, data) -> None:
+    """begin of a ``collide = false`` pair: ignored until the two separate (Chipmunk keeps the
+    arbiter ignored, so this runs once per overlap, not per step)."""
+    arbiter.process_collision = False
+
+
+def _world_vertices(shape, position, angle) -> np.ndarray:
+    """A box's or polygon's vertices placed at a pose (world coordinates)."""
+    v = (np.asarray(shape.vertices, float) if shape.kind == "polygon"
+         else 0.5 * np.asarray(shape.size, float) * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]))
+    c, s = math.cos(angle), math.sin(angle)
+    return v @ np.array([[c, s], [-s, c]]) + np.asarray(position, float)
+
+
+def initial_gap(scene: Scene, a: str, b: str) -> float:
+    """The distance between a and b at t = 0 (negative: overlapping; only its closeness to zero
+    is used): circle centres and radii, polygon vertices against the other's signed distance
+    (between convex polygons the nearest points include a vertex), the ground's line."""
+    from crosscheck.scene.contact import GROUND
+    from crosscheck.scene.shapes import Placed
+
+    def geometry(name):
+        thing = next(t for t in (*scene.bodies, *scene.statics) if t.name == name)
+        angle = float(np.asarray(thing.orientation).reshape(-1)[0])
+        placed = Placed(thing.shape, thing.position, thing.orientation)
+        if thing.shape.kind == "circle":
+            return placed, np.asarray(thing.position, float)[None], float(thing.shape.radius)
+        return placed, _world_vertices(thing.shape, thing.position, angle), 0.0
+
+    pa, va, ra = geometry(a)
+    if b == GROUND:
+        n, off = np.asarray(scene.ground.normal, float), float(scene.ground.offset)
+        return float(np.min(va @ n) - off - ra)
+    pb, vb, rb = geometry(b)
+    if ra and rb:
+        return float(np.linalg.norm(va[0] - vb[0]) - ra - rb)
+    if ra:  # a circle: its centre's distance to the polygon b
+        return float(pb.signed_distance(va)[0]) - ra
+    if rb:
+        return float(pa.signed_distance(vb)[0]) - rb
+    return min(float(np.min(pb.signed_distance(va))), float(np.min(pa.signed_distance(vb))))
 
 
 class PymunkModel:
@@ -118,8 +210,15 @@ class PymunkModel:
         space.gravity = (float(g[0]), float(g[1]))
         space.damping = 1.0
         space.sleep_time_threshold = math.inf
+        self.iterations_reason = "Chipmunk's default"
+        if scene.effects.contact:  # CONTACTS.md recipe; without contact nothing changes
+            space.iterations, self.iterations_reason = contact_iterations(scene)
+            space.collision_slop = CONTACT_SLOP
         if self.options.get("iterations") is not None:
             space.iterations = int(self.options["iterations"])
+            self.iterations_reason = "engine_options.pymunk.iterations"
+        if self.options.get("collision_slop") is not None:
+            space.collision_slop = float(self.options["collision_slop"])
         self.space = space
         self.bodies: list[Any] = []
         for body in scene.bodies:
@@ -142,6 +241,11 @@ class PymunkModel:
                                       float(s.rest_length), float(s.stiffness), float(s.damping))
             space.add(spring)
             self.springs.append(spring)
+        self.shapes: dict[str, Any] = {}  # name -> its one shape (contact scenes only)
+        self.collision_types: dict[str, int] = {}
+        self.pairs: list[tuple[Any, tuple[int, int]]] = []  # (ContactPair, collision types)
+        if scene.effects.contact:
+            self._add_contact()
         # Per-step forces: (body, linear drag, angular drag, load force, load torque).
         n = len(scene.bodies)
         lin, ang = np.zeros(n), np.zeros(n)
@@ -174,6 +278,60 @@ class PymunkModel:
             step = _cp.cpSpaceStep
             self._step = lambda dt: step(handle, dt)  # noqa: E731 - see the module docstring
         self.native, self.native_reason = self._native()
+
+    def _add_contact(self) -> None:
+        """Shapes for every body, static and the ground, and one collision handler per pair.
+
+        Each shape has mass 0 and density 0, so adding it leaves the body's mass, moment and
+        centre of gravity as set (Chipmunk accumulates mass from shapes only when a shape has
+        some; read back in ``settings``). Its own friction and elasticity stay 0: the pair's
+        values come from the handler alone, so a pair the handler missed would be frictionless
+        and dead, never silently right by another rule. Every shape gets its own collision type
+        (its index + 1) and every pair of ``Scene.contact_pairs()`` its own handler: pre_solve sets
+        the arbiter's friction and restitution to the pair's values at every step; a
+        ``collide = false`` pair's begin rejects the contact.
+        """
+        scene, space = self.scene, self.space
+        static = space.static_body
+        for pb, body in zip(self.bodies, scene.bodies, strict=True):
+            self.shapes[body.name] = self._shape(pb, body.shape, (0.0, 0.0), 0.0)
+        for st in scene.statics:
+            self.shapes[st.name] = self._shape(static, st.shape, st.position,
+                                               float(np.asarray(st.orientation).reshape(-1)[0]))
+        if scene.ground is not None:
+            from crosscheck.scene.contact import GROUND
+
+            n = np.asarray(scene.ground.normal, float)
+            t = np.array([n[1], -n[0]])
+            p0 = n * float(scene.ground.offset)
+            ext = GROUND_EXTENT
+            verts = [p0 - ext * t, p0 + ext * t, p0 + ext * (t - n), p0 - ext * (t + n)]
+            self.shapes[GROUND] = _pm.Poly(static, [(float(x), float(y)) for x, y in verts],
+                                           radius=0.0)
+        for i, (name, shape) in enumerate(self.shapes.items()):
+            shape.collision_type = i + 1
+            self.collision_types[name] = i + 1
+        space.add(*self.shapes.values())
+        for pair in scene.contact_pairs():
+            types = (self.collision_types[pair.a], self.collision_types[pair.b])
+            m = pair.material
+            if m.collide:
+                space.on_collision(*types, pre_solve=_set_pair_values,
+                                   data=(float(m.friction), float(m.restitution)))
+            else:
+                space.on_collision(*types, begin=_never)
+            self.pairs.append((pair, types))
+
+    @staticmethod
+    def _shape(body, shape, position, angle):
+        """The pymunk shape of a scene shape in ``body``'s frame, placed at (position, angle) in
+        it (the identity for a body; the static's pose on the static body, whose frame is the
+        world's). Mass and density 0, radius 0: the surface is the shape's own."""
+        if shape.kind == "circle":
+            return _pm.Circle(body, float(shape.radius),
+                              offset=(float(position[0]), float(position[1])))
+        verts = _world_vertices(shape, position, angle)
+        return _pm.Poly(body, [(float(x), float(y)) for x, y in verts], radius=0.0)
 
     def _native(self) -> tuple[Any, str]:
         """The compiled stepper/reader (engines/_native.py) if it reads what read_raw reads.
@@ -354,11 +512,14 @@ class PymunkModel:
             if (sp.stiffness, sp.damping, sp.rest_length) != (
                     float(s.stiffness), float(s.damping), float(s.rest_length)):
                 problems.append("a DampedSpring did not take the scene's parameters")
+        contact = self.contact_settings(problems) if self.scene.effects.contact else None
         return {
             "recording": self.recording,
             "gravity": gravity,
             "damping": space.damping,
             "iterations": space.iterations,
+            "iterations_reason": self.iterations_reason,
+            "contact": contact,
             "sleep_time_threshold": space.sleep_time_threshold,
             "idle_speed_threshold": space.idle_speed_threshold,
             "threaded": bool(space.threaded),
@@ -368,6 +529,75 @@ class PymunkModel:
                        if self.per_step else "none"),
             "options": dict(self.options),
         }, problems
+
+
+    def contact_settings(self, problems: list[str]) -> dict[str, Any]:
+        """The contact model read back: space settings, shapes, and every pair's handler with
+        the values it sets (from the handler pymunk holds, not from the scene)."""
+        space = self.space
+        wanted = float(self.options.get("collision_slop") or CONTACT_SLOP)
+        if space.collision_slop != wanted:
+            problems.append(f"collision_slop read back {space.collision_slop}, wanted {wanted}")
+        shapes = []
+        for name, shape in self.shapes.items():
+            kind = type(shape).__name__
+            entry = {"name": name, "shape": kind, "collision_type": shape.collision_type,
+                     "mass": shape.mass, "density": shape.density, "radius": shape.radius,
+                     "friction": shape.friction, "elasticity": shape.elasticity,
+                     "static": shape.body is space.static_body}
+            if kind == "Poly":
+                entry["vertices"] = [[v.x, v.y] for v in shape.get_vertices()]
+            if shape.mass != 0.0 or shape.density != 0.0:
+                problems.append(f"shape of {name!r} has mass {shape.mass}, density "
+                                f"{shape.density}: it would change the body's mass properties")
+            shapes.append(entry)
+        pairs, warnings = [], []
+        for pair, types in self.pairs:
+            handler = space._handlers.get(types)
+            m = pair.material
+            entry = {"a": pair.a, "b": pair.b, "kind": pair.kind, "source": m.source,
+                     "collision_types": list(types), "collide": m.collide}
+            if handler is None:
+                problems.append(f"no collision handler for the pair {pair.a!r}-{pair.b!r}")
+            elif m.collide:
+                values = handler.data.get("pre_solve")
+                entry.update(handler="pre_solve sets arbiter friction and restitution",
+                             friction=values[0], restitution=values[1])
+                if handler.pre_solve is not _set_pair_values or values != (
+                        float(m.friction), float(m.restitution)):
+                    problems.append(f"pair {pair.a!r}-{pair.b!r}: handler sets {values}, pair "
+                                    f"values are {(m.friction, m.restitution)}")
+            else:
+                entry["handler"] = "begin rejects the contact (collide = false)"
+                if handler.begin is not _never:
+                    problems.append(f"pair {pair.a!r}-{pair.b!r} (collide = false) is not "
+                                    "rejected")
+            if m.collide:
+                gap = initial_gap(self.scene, pair.a, pair.b)
+                entry["initial_gap"] = gap
+                if abs(gap) <= TOUCHING:
+                    warnings.append(
+                        f"{pair.a!r} and {pair.b!r} start touching (gap {gap:.3g} m): Chipmunk "
+                        "makes no contact at distance 0 (CONTACTS.md C17), so the two act as "
+                        "apart until something presses them into overlap (a touching cradle "
+                        "gives 0, 0, 1 instead of -1/3, 2/3, 2/3); start them apart or "
+                        "overlapping by 1e-9 m")
+            pairs.append(entry)
+        return {
+            "collision_slop": space.collision_slop,
+            "collision_bias": space.collision_bias,
+            "collision_persistence": space.collision_persistence,
+            "iterations": space.iterations,
+            "iterations_reason": self.iterations_reason,
+            "ground": (f"Poly, top edge on the ground line, {GROUND_EXTENT:g} m either side "
+                       "and deep" if self.scene.ground is not None else None),
+            "handler": ("one per pair (collision type per shape): pre_solve sets "
+                        "Arbiter.friction and Arbiter.restitution to the pair's values; "
+                        "collide = false: begin sets process_collision = False"),
+            "shapes": shapes,
+            "pairs": pairs,
+            "warnings": warnings,
+        }
 
 
 class PymunkEngine(EngineBase):
@@ -382,7 +612,7 @@ class PymunkEngine(EngineBase):
         return Capabilities(
             dimensions=frozenset({2}),
             shapes=frozenset(_SHAPES),
-            effects=frozenset({"gravity", "springs", "drag", "loads"}),
+            effects=frozenset({"gravity", "springs", "drag", "loads", "contact"}),
             integrators=INTEGRATORS,
             notes=dict(INTEGRATOR_NOTES),
         )
@@ -397,7 +627,20 @@ class PymunkEngine(EngineBase):
             return "the pymunk package is not installed"
         if scene.dimension != 2:
             return "pymunk is 2D"
-        return super().not_applicable(scene, integrator)
+        reason = super().not_applicable(scene, integrator)
+        if reason is not None or not scene.effects.contact:
+            return reason
+        for st in scene.statics:
+            if st.shape.kind not in _SHAPES:
+                return f"pymunk has no {st.shape.kind} shape (static {st.name!r})"
+        for pair in scene.contact_pairs():
+            m = pair.material
+            if m.collide and (m.rolling_friction > 0 or m.torsional_friction > 0):
+                what = "rolling" if m.rolling_friction > 0 else "torsional"
+                value = m.rolling_friction if m.rolling_friction > 0 else m.torsional_friction
+                return (f"Chipmunk has no {what} friction (pair {pair.a!r}-{pair.b!r} has "
+                        f"{what}_friction = {value:g} m): its contacts resist sliding only")
+        return None
 
     def open(self, scene: Scene, integrator: str, dt: float) -> PymunkModel:
         return PymunkModel(scene, dt)
