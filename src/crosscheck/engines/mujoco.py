@@ -14,8 +14,16 @@ What is mapped how (docs/engines.md has the full table):
   the hinge angle is the body angle. Out-of-plane moments equal the in-plane one (any positive
   values satisfying the triangle inequality would do; no out-of-plane motion exists).
 * **Gravity** ``m.opt.gravity`` = the scene's, zero when the scene has none (MuJoCo's default is
-  -9.81 along z). **Contact** is disabled (``mjDSBL_CONTACT``; there are no geoms either):
-  contact scenes are "not applicable" until the contact issue.
+  -9.81 along z).
+* **Contact**, only with ``[effects] contact = true`` (otherwise ``mjDSBL_CONTACT``, no geoms and
+  no contact option touched). One massless geom per body (3D shapes as themselves, a mesh
+  collided as its convex hull; 2D shapes as prisms along z, the ground line as a plane
+  containing z), the ground as a plane and statics as world geoms, all with contype =
+  conaffinity = 0; each pair of ``Scene.contact_pairs()`` with ``collide`` gets an explicit
+  ``<pair>`` with exactly its values (MuJoCo's own rule, the max, is bypassed): condim 1/3/4/6,
+  friction (mu, mu, torsional, rolling, rolling), a non-bouncing solref for e = 0 and a direct
+  solref from the unilateral spring-dashpot's zeta(e) for e > 0. Elliptic cone, impratio 10, no
+  noslip. docs/engines.md, "Contact", has the measurements behind each setting.
 * **Springs** are spatial tendons between two sites with ``stiffness``, ``damping`` and
   ``springlength = (L0, L0)``: MuJoCo's tendon force is -k (L - L0) - c dL/dt along the line of
   the sites, exactly the scene's spring, and it is evaluated inside every RK4 stage.
