@@ -116,7 +116,7 @@ def test_capabilities_and_version():
     assert set(caps.integrators) == {"euler", "rk4", "implicit", "implicitfast", "discrete"}
     assert caps.dimensions == {2, 3}
     assert {"sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon"} <= caps.shapes
-    assert "contact" not in caps.effects
+    assert "contact" in caps.effects
     assert ENGINE.version() == mujoco.__version__
     assert get_engine("mujoco").name == "mujoco"
 
@@ -527,26 +527,8 @@ def test_engine_options_known_applied_unknown_refused():
                               "euler")
 
 
-def test_contact_is_not_applicable_yet():
-    scene = load_case_text("""
-[case]
-name = "contact"
-dimension = 3
-[run]
-duration = 1.0
-dt = 1e-3
-[effects]
-gravity = [0.0, 0.0, -9.81]
-contact = true
-[ground]
-[[bodies]]
-name = "ball"
-shape = { sphere = { radius = 0.1 } }
-mass = 1.0
-position = [0.0, 0.0, 1.0]
-""")
-    reason = ENGINE.not_applicable(scene, "euler")
-    assert reason is not None and "contact" in reason
+def test_integrators_applicable():
+    # Contact scenes are tested in test_mujoco_contact.py.
     assert ENGINE.not_applicable(scene3d(), "verlet") is not None
     assert ENGINE.not_applicable(scene3d(), "rk4") is None
 

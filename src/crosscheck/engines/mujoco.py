@@ -14,8 +14,16 @@ What is mapped how (docs/engines.md has the full table):
   the hinge angle is the body angle. Out-of-plane moments equal the in-plane one (any positive
   values satisfying the triangle inequality would do; no out-of-plane motion exists).
 * **Gravity** ``m.opt.gravity`` = the scene's, zero when the scene has none (MuJoCo's default is
-  -9.81 along z). **Contact** is disabled (``mjDSBL_CONTACT``; there are no geoms either):
-  contact scenes are "not applicable" until the contact issue.
+  -9.81 along z).
+* **Contact**, only with ``[effects] contact = true`` (otherwise ``mjDSBL_CONTACT``, no geoms and
+  no contact option touched). One massless geom per body (3D shapes as themselves, a mesh
+  collided as its convex hull; 2D shapes as prisms along z, the ground line as a plane
+  containing z), the ground as a plane and statics as world geoms, all with contype =
+  conaffinity = 0; each pair of ``Scene.contact_pairs()`` with ``collide`` gets an explicit
+  ``<pair>`` with exactly its values (MuJoCo's own rule, the max, is bypassed): condim 1/3/4/6,
+  friction (mu, mu, torsional, rolling, rolling), a non-bouncing solref for e = 0 and a direct
+  solref from the unilateral spring-dashpot's zeta(e) for e > 0. Elliptic cone, impratio 10, no
+  noslip. docs/engines.md, "Contact", has the measurements behind each setting.
 * **Springs** are spatial tendons between two sites with ``stiffness``, ``damping`` and
   ``springlength = (L0, L0)``: MuJoCo's tendon force is -k (L - L0) - c dL/dt along the line of
   the sites, exactly the scene's spring, and it is evaluated inside every RK4 stage.
@@ -47,6 +55,7 @@ arrays, stale after ``mj_step``, are never read):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,6 +66,7 @@ from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
 from crosscheck.names import rigid_names
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
+from crosscheck.scene.contact import GROUND
 from crosscheck.scene.model import Scene
 
 try:  # the registry imports this module lazily; a missing mujoco is "not applicable"
@@ -209,6 +219,160 @@ def mujoco_limits(scene: Scene) -> str | None:
     return None
 
 
+# -- contact ---------------------------------------------------------------------------------------
+# Settings of contact scenes (docs/engines.md, "MuJoCo: contact"; the figures behind each are in
+# benchmarks/results/contact_mujoco.md, from benchmarks/contact_mujoco.py).
+CONTACT_OPTIONS: dict[str, Any] = {
+    # Isotropic friction: the pyramidal default slides mu/sqrt(2) at 45 deg to the contact frame
+    # (CONTACTS.md trap C3).
+    "cone": "mjCONE_ELLIPTIC",
+    # Friction rows 10x harder than the normal row: static creep at 25 deg on mu = 0.5 falls from
+    # 3 mm to 0.008 mm in 2 s (with the non-bouncing row below; trap C6).
+    "impratio": 10.0,
+    # No noslip pass: with elliptic cones it spoils kinetic friction (+10 to +86 %), and with
+    # pyramidal cones and mu ~ 0 it explodes (trap C5).
+    "noslip_iterations": 0,
+    "solver": "mjSOL_NEWTON",
+    "iterations": 100,
+    "tolerance": 1e-8,
+    "ls_iterations": 50,
+}
+# e = 0: recipe M3 of CONTACTS.md. timeconst 5 ms (b ~ 400/s, k ~ 1e4/s^2) with dampratio 2: a
+# linear spring-dashpot at dampratio 1 still rebounds (e(1) = exp(-2) = 0.135, trap C1).
+SOLREF_INELASTIC = (0.005, 2.0)
+SOLIMP = (0.99, 0.99, 0.001, 0.5, 2.0)
+# e > 0: a direct-format row whose contact lasts about this many steps.
+RESTITUTION_STEPS = 20
+
+
+def restitution_of_damping(zeta: float) -> float:
+    """Coefficient of restitution of a *unilateral* linear spring-dashpot contact.
+
+    x'' + 2 zeta x' + x = 0 from x = 0, x' = 1 (unit natural frequency), and the contact lets go
+    when its force k x + b x' reaches zero (a contact cannot pull), i.e. when x'' = 0, not when
+    x returns to 0. Then e = -x'(release). Closed forms of Schwager and Poeschel, "Coefficient of
+    restitution and linear-dashpot model revisited", Granular Matter 9 (2007) 465, eqs. for the
+    under-damped branches; the over-damped branch solves x'' = 0 for the two real exponents
+    directly. The textbook exp(-zeta pi / sqrt(1 - zeta^2)) assumes release at x = 0 and asks for
+    too little damping (e = 0.5 comes out 0.55; CONTACTS.md trap C2). e(1) = exp(-2).
+    """
+    z = float(zeta)
+    if z <= 0.0:
+        return 1.0
+    if z < 1.0:
+        s = math.sqrt(1.0 - z * z)
+        if z < 1.0 / math.sqrt(2.0):
+            phase = math.pi - math.atan(2.0 * z * s / (1.0 - 2.0 * z * z))
+        elif z == 1.0 / math.sqrt(2.0):
+            phase = math.pi / 2.0
+        else:
+            phase = math.atan(2.0 * z * s / (2.0 * z * z - 1.0))
+        return math.exp(-z / s * phase)
+    if z == 1.0:
+        return math.exp(-2.0)
+    s = math.sqrt(z * z - 1.0)
+    r1, r2 = -z + s, -z - s  # x = (exp(r1 t) - exp(r2 t)) / (2 s)
+    t = math.log(r2 * r2 / (r1 * r1)) / (2.0 * s)  # x'' = 0
+    return -(r1 * math.exp(r1 * t) - r2 * math.exp(r2 * t)) / (2.0 * s)
+
+
+def damping_for_restitution(e: float) -> float:
+    """The damping ratio zeta whose unilateral spring-dashpot gives restitution e in (0, 1]
+    (the inverse of :func:`restitution_of_damping`, which decreases monotonically; bisection to
+    1e-15). e -> 0 needs zeta -> infinity: e below 1e-9 is refused."""
+    if not 1e-9 <= e <= 1.0:
+        raise ValueError(f"restitution {e} outside [1e-9, 1]")
+    if e == 1.0:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    while restitution_of_damping(hi) > e:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if restitution_of_damping(mid) > e:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+def solref_for_restitution(e: float, dt: float, nsteps: int = RESTITUTION_STEPS
+                           ) -> tuple[float, float]:
+    """MuJoCo direct-format ``solref = (-k, -b)`` for restitution ``e`` in (0, 1].
+
+    MuJoCo has no restitution coefficient: a contact is a spring-dashpot on the penetration,
+    aref = -b v - k x per unit effective mass, so its restitution is that of the damped
+    oscillator (:func:`restitution_of_damping`). The contact is made to last about ``nsteps``
+    steps: a nominal frequency w = pi / (nsteps dt), w0 = w / sqrt(1 - zeta^2) so that the
+    half-period of the damped oscillation is nsteps dt (w0 = w when over-damped), k = w0^2,
+    b = 2 zeta w0. The same construction as ``mj_solref_for_e`` of the contact study
+    (shared/contact-measurements/lib.py), written here as crosscheck's own code.
+    """
+    w = math.pi / (nsteps * dt)
+    z = damping_for_restitution(e)
+    w0 = w / math.sqrt(1.0 - z * z) if z < 1.0 else w
+    return (-w0 * w0, -2.0 * z * w0)
+
+
+def pair_condim(pm) -> int:
+    """MuJoCo's contact dimensionality for a pair's values: 1 frictionless (trap C5: mu = 0 is
+    expressed as no friction rows, never as friction 0), 3 sliding, 4 with torsional, 6 with
+    rolling friction."""
+    if pm.friction == 0.0:
+        return 1
+    if pm.rolling_friction > 0.0:
+        return 6
+    if pm.torsional_friction > 0.0:
+        return 4
+    return 3
+
+
+def pair_solref(pm, dt: float) -> tuple[float, float]:
+    if pm.restitution > 0.0:
+        return solref_for_restitution(pm.restitution, dt)
+    return SOLREF_INELASTIC
+
+
+def contact_limits(scene: Scene) -> str | None:
+    """Why MuJoCo cannot give this contact scene's pairs their values, or None."""
+    for pair in scene.contact_pairs():
+        pm = pair.material
+        if not pm.collide:
+            continue
+        if pm.friction == 0.0 and (pm.rolling_friction > 0.0 or pm.torsional_friction > 0.0):
+            return (f"pair {pair.a!r}-{pair.b!r}: rolling or torsional friction without sliding "
+                    "friction has no MuJoCo contact dimension (condim 1 drops them, and the "
+                    "elliptic cone scales every friction row by the sliding one)")
+        if 0.0 < pm.restitution < 1e-9:
+            return (f"pair {pair.a!r}-{pair.b!r}: restitution {pm.restitution:g} is neither 0 "
+                    "nor reachable by a linear spring-dashpot (below 1e-9)")
+    return None
+
+
+def _quat_z_to(n: np.ndarray) -> np.ndarray:
+    """The shortest rotation taking +z to the unit vector n, (w, x, y, z)."""
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    c = float(n[2])
+    if c < -1.0 + 1e-15:
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    q = np.array([1.0 + c, -n[1], n[0], 0.0])  # (1 + z.n, z x n)
+    return q / np.linalg.norm(q)
+
+
+def extrusion_half_depth(scene: Scene) -> float:
+    """2D: half the z extent of the prisms standing in for circles, boxes and polygons: the
+    largest in-plane half extent of any shape (bodies and statics), so prisms are about as deep as
+    they are wide (a plate far thinner than wide would make the convex collision search of two
+    prisms ill-conditioned, and no 2D quantity depends on the depth)."""
+    half = 0.0
+    for thing in (*scene.bodies, *scene.statics):
+        lo, hi = thing.shape.bounding_box()
+        half = max(half, float(np.max(np.abs(np.concatenate([lo, hi])))))
+    return half if half > 0 else 1.0
+
+
 @dataclass
 class _BodyMap:
     """How one scene body sits in the MuJoCo model."""
@@ -247,6 +411,9 @@ class MujocoModel:
         self.options = engine_options(scene) if options is None else options
         self.dim = scene.dimension
         self.aligned = bool(self.options["align_free"]) and self.dim == 3
+        self.contact = bool(scene.effects.contact)
+        self._depth = extrusion_half_depth(scene) if self.contact and self.dim == 2 else 0.0
+        self._pairs = []
         self.mjcf = self._mjcf()
         self.model = mujoco.MjModel.from_xml_string(self.mjcf)
         self.data = mujoco.MjData(self.model)
@@ -273,6 +440,100 @@ class MujocoModel:
         t, q_p, _, _ = self._frame(body)
         return quat_to_matrix(q_p).T @ (np.asarray(local, float) - t)
 
+    # -- contact geometry -----------------------------------------------------------------------
+    def _geom(self, name: str, shape, pos, quat, assets: list[str]) -> str:
+        """A collision geom (no mass: the compiler ignores geoms for inertia, inertiafromgeom is
+        false) for a shape at (pos, quat) in its parent's frame; only explicit pairs collide
+        (contype = conaffinity = 0)."""
+        frame = f'pos="{_v(pos)}" quat="{_v(quat)}" contype="0" conaffinity="0"'
+        kind = shape.kind
+        if self.dim == 3:
+            if kind == "sphere":
+                return f'<geom name="{name}" type="sphere" size="{_f(shape.radius)}" {frame}/>'
+            if kind == "box":
+                half = np.asarray(shape.size, float) / 2
+                return f'<geom name="{name}" type="box" size="{_v(half)}" {frame}/>'
+            if kind in ("capsule", "cylinder"):
+                return (f'<geom name="{name}" type="{kind}" '
+                        f'size="{_f(shape.radius)} {_f(shape.length / 2)}" {frame}/>')
+            if kind == "mesh":
+                # MuJoCo collides a mesh by its convex hull (qhull, computed by the compiler).
+                assets.append(f'<mesh name="m_{name}" vertex="{_v(shape.vertices)}" '
+                              f'face="{" ".join(str(int(i)) for i in np.ravel(shape.faces))}"/>')
+                return f'<geom name="{name}" type="mesh" mesh="m_{name}" {frame}/>'
+        else:
+            depth = self._depth
+            if kind == "circle":
+                return (f'<geom name="{name}" type="cylinder" '
+                        f'size="{_f(shape.radius)} {_f(depth)}" {frame}/>')
+            if kind == "box":
+                w, h = np.asarray(shape.size, float) / 2
+                return f'<geom name="{name}" type="box" size="{_v([w, h, depth])}" {frame}/>'
+            if kind == "polygon":
+                v = np.asarray(shape.vertices, float)
+                prism = np.concatenate([np.column_stack([v, np.full(len(v), -depth)]),
+                                        np.column_stack([v, np.full(len(v), depth)])])
+                # No faces: MuJoCo takes the convex hull of the vertices, here the prism itself.
+                assets.append(f'<mesh name="m_{name}" vertex="{_v(prism)}"/>')
+                return f'<geom name="{name}" type="mesh" mesh="m_{name}" {frame}/>'
+        raise CaseError(self.scene.source, "shape", "a shape MuJoCo can collide", kind)
+
+    def _contact_xml(self) -> tuple[dict[int, str], str, str, str]:
+        """(geom per body index, world geoms, assets, <contact> section) of a contact scene."""
+        scene = self.scene
+        assets: list[str] = []
+        body_geoms: dict[int, str] = {}
+        ident = np.array([1.0, 0.0, 0.0, 0.0])
+        self._geom_of: dict[str, str] = {}
+        for i, body in enumerate(scene.bodies):
+            if self.dim == 3:
+                t, q_p, _, _ = self._frame(body)
+                pos = -(quat_to_matrix(q_p).T @ t)
+                quat = quat_conj(q_p)
+            else:
+                # The 2D MuJoCo body frame coincides with the declared body frame in the plane.
+                pos, quat = np.zeros(3), ident
+            body_geoms[i] = self._geom(f"g{i}", body.shape, pos, quat, assets)
+            self._geom_of[body.name] = f"g{i}"
+        world: list[str] = []
+        for k, static in enumerate(scene.statics):
+            if self.dim == 3:
+                pos, quat = np.asarray(static.position, float), np.asarray(static.orientation,
+                                                                             float)
+            else:
+                pos = np.array([static.position[0], static.position[1], 0.0])
+                a = float(np.ravel(static.orientation)[0])
+                quat = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
+            world.append(self._geom(f"s{k}", static.shape, pos, quat, assets))
+            self._geom_of[static.name] = f"s{k}"
+        if scene.ground is not None:
+            n = np.asarray(scene.ground.normal, float)
+            if self.dim == 2:
+                n = np.array([n[0], n[1], 0.0])  # the ground line: a plane containing z
+            n = n / np.linalg.norm(n)
+            # A plane geom is its frame's x-y plane, its normal the frame's +z.
+            world.append(f'<geom name="ground" type="plane" size="0 0 1" '
+                         f'pos="{_v(n * scene.ground.offset)}" quat="{_v(_quat_z_to(n))}" '
+                         f'contype="0" conaffinity="0"/>')
+            self._geom_of[GROUND] = "ground"
+        pairs = []
+        self._pairs = []
+        for pair in scene.contact_pairs():
+            pm = pair.material
+            if not pm.collide:
+                continue
+            g1, g2 = self._geom_of[pair.a], self._geom_of[pair.b]
+            solref = pair_solref(pm, self.dt)
+            friction = [pm.friction, pm.friction, pm.torsional_friction, pm.rolling_friction,
+                        pm.rolling_friction]
+            pairs.append(f'<pair name="p{len(self._pairs)}" geom1="{g1}" geom2="{g2}" '
+                         f'condim="{pair_condim(pm)}" friction="{_v(friction)}" '
+                         f'solref="{_v(solref)}" solimp="{_v(SOLIMP)}" margin="0" gap="0"/>')
+            self._pairs.append(pair)
+        contact = f"<contact>{''.join(pairs)}</contact>" if pairs else ""
+        asset = f"<asset>{''.join(assets)}</asset>" if assets else ""
+        return body_geoms, "".join(world), asset, contact
+
     def _mjcf(self) -> str:
         scene = self.scene
         sites: dict[int, list[str]] = {i: [] for i in range(len(scene.bodies))}
@@ -296,6 +557,10 @@ class MujocoModel:
                 f'damping="{_f(spring.damping)}" '
                 f'springlength="{_f(spring.rest_length)} {_f(spring.rest_length)}">'
                 f'<site site="sa{k}"/><site site="sb{k}"/></spatial>')
+        body_geoms: dict[int, str] = {}
+        world_geoms = asset = contact = ""
+        if self.contact:
+            body_geoms, world_geoms, asset, contact = self._contact_xml()
         bodies = []
         for i, body in enumerate(scene.bodies):
             if self.dim == 3:
@@ -312,15 +577,16 @@ class MujocoModel:
                           f'<joint name="j{i}r" type="hinge" axis="0 0 1" pos="{_v(c)}"/>')
                 inertial = (f'<inertial pos="{_v(c)}" mass="{_f(body.mass)}" '
                             f'diaginertia="{_v([moment, moment, moment])}"/>')
-            bodies.append(f'<body name="b{i}">{joints}{inertial}{"".join(sites[i])}</body>')
+            bodies.append(f'<body name="b{i}">{joints}{inertial}{body_geoms.get(i, "")}'
+                          f'{"".join(sites[i])}</body>')
         tendon_xml = f"<tendon>{''.join(tendons)}</tendon>" if tendons else ""
         # inertiafromgeom false and no bounds: the inertial is used exactly as written.
         return (
             '<mujoco model="crosscheck">'
             '<compiler angle="radian" inertiafromgeom="false" boundmass="0" boundinertia="0" '
             'balanceinertia="false" alignfree="false"/>'
-            f'<worldbody>{"".join(world_sites)}{"".join(bodies)}</worldbody>'
-            f"{tendon_xml}</mujoco>"
+            f'{asset}<worldbody>{world_geoms}{"".join(world_sites)}{"".join(bodies)}</worldbody>'
+            f"{contact}{tendon_xml}</mujoco>"
         )
 
     def _configure(self) -> None:
@@ -338,7 +604,20 @@ class MujocoModel:
         opt.jacobian = int(getattr(mujoco.mjtJacobian,
                                    f"mjJAC_{self.options['jacobian'].upper()}"))
         dis = mujoco.mjtDisableBit
-        flags = int(opt.disableflags) | int(dis.mjDSBL_CONTACT)
+        flags = int(opt.disableflags)
+        if self.contact:
+            # Only the explicit pairs collide (every geom has contype = conaffinity = 0).
+            flags &= ~int(dis.mjDSBL_CONTACT)
+            c = CONTACT_OPTIONS
+            opt.cone = int(getattr(mujoco.mjtCone, c["cone"]))
+            opt.impratio = c["impratio"]
+            opt.noslip_iterations = c["noslip_iterations"]
+            opt.solver = int(getattr(mujoco.mjtSolver, c["solver"]))
+            opt.iterations = c["iterations"]
+            opt.tolerance = c["tolerance"]
+            opt.ls_iterations = c["ls_iterations"]
+        else:
+            flags |= int(dis.mjDSBL_CONTACT)
         # A blow-up must stay a blow-up (NaN reaches the recorder), not a silent reset to qpos0.
         flags |= int(dis.mjDSBL_AUTORESET)
         if not self.options["eulerdamp"]:
@@ -603,6 +882,72 @@ class MujocoModel:
         return count, _UNSTABLE
 
     # -- read back ------------------------------------------------------------------------
+    def contact_settings(self) -> dict[str, Any]:
+        """Contact settings read back from the compiled model: global options, every geom, every
+        pair (the scene's names and values next to what MuJoCo holds)."""
+        m = self.model
+        opt = m.opt
+        gtypes = {int(v): k.replace("mjGEOM_", "").lower()
+                  for k, v in mujoco.mjtGeom.__members__.items()}
+        geoms = []
+        for g in range(m.ngeom):
+            entry = {
+                "name": _name(m, mujoco.mjtObj.mjOBJ_GEOM, g),
+                "type": gtypes.get(int(m.geom_type[g]), str(int(m.geom_type[g]))),
+                "body": _name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g])),
+                "size": np.array(m.geom_size[g]).tolist(),
+                "contype": int(m.geom_contype[g]),
+                "conaffinity": int(m.geom_conaffinity[g]),
+            }
+            if int(m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_MESH):
+                mid = int(m.geom_dataid[g])
+                entry["collision"] = (
+                    f"convex hull of the mesh: {int(m.mesh_graph[m.mesh_graphadr[mid]])} hull "
+                    f"vertices of {int(m.mesh_vertnum[mid])}" if m.mesh_graphadr[mid] >= 0
+                    else "convex hull of the mesh")
+            geoms.append(entry)
+        pairs = []
+        for k, pair in enumerate(self._pairs):
+            pairs.append({
+                "a": pair.a, "b": pair.b, "kind": pair.kind, "source": pair.material.source,
+                "geoms": [_name(m, mujoco.mjtObj.mjOBJ_GEOM, int(m.pair_geom1[k])),
+                          _name(m, mujoco.mjtObj.mjOBJ_GEOM, int(m.pair_geom2[k]))],
+                "condim": int(m.pair_dim[k]),
+                "friction": np.array(m.pair_friction[k]).tolist(),
+                "solref": np.array(m.pair_solref[k]).tolist(),
+                "solreffriction": np.array(m.pair_solreffriction[k]).tolist(),
+                "solimp": np.array(m.pair_solimp[k]).tolist(),
+                "margin": float(m.pair_margin[k]),
+                "gap": float(m.pair_gap[k]),
+                "restitution": pair.material.restitution,
+                "restitution_model": (
+                    "none: non-bouncing row (timeconst, dampratio) = "
+                    f"{list(SOLREF_INELASTIC)}" if pair.material.restitution == 0.0 else
+                    "direct solref (-k, -b) of a unilateral spring-dashpot with this "
+                    f"restitution, contact lasting ~{RESTITUTION_STEPS} steps (approximate: "
+                    "docs/engines.md)"),
+            })
+        disabled = [(p.a, p.b) for p in self.scene.contact_pairs() if not p.material.collide]
+        timeconst = SOLREF_INELASTIC[0]
+        return {
+            "cone": mujoco.mjtCone(int(opt.cone)).name,
+            "impratio": float(opt.impratio),
+            "noslip_iterations": int(opt.noslip_iterations),
+            "solver": mujoco.mjtSolver(int(opt.solver)).name,
+            "iterations": int(opt.iterations),
+            "tolerance": float(opt.tolerance),
+            "ls_iterations": int(opt.ls_iterations),
+            "refsafe": not (int(opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)),
+            "inelastic_timeconst_in_force": max(timeconst, 2.0 * float(opt.timestep)),
+            "npair": int(m.npair),
+            "default_collisions": "off: every geom has contype = conaffinity = 0; only the "
+                                  "pairs below collide",
+            "geoms": geoms,
+            "pairs": pairs,
+            "collide_false": [list(p) for p in disabled],
+            "extrusion_half_depth_2d": self._depth if self.dim == 2 else None,
+        }
+
     def effective(self, arrays=None) -> dict[str, Any]:
         """Settings read back from the compiled model, not from what was asked for."""
         m, d = self.model, self.data
@@ -668,9 +1013,14 @@ class MujocoModel:
             "loads": "constant xfrc_applied (force at the centre of mass, world torque)"
                      if self.scene.effects.loads else "none",
             "stepping": self.stepping_mode,
+            "contact": self.contact_settings() if self.contact else "disabled (mjDSBL_CONTACT)",
             "warnings": warnings,
             "options": dict(self.options),
         }
+
+
+def _name(m, obj, i: int) -> str:
+    return mujoco.mj_id2name(m, obj, i) or str(i)
 
 
 class MujocoEngine(EngineBase):
@@ -685,7 +1035,7 @@ class MujocoEngine(EngineBase):
         return Capabilities(
             dimensions=frozenset({2, 3}),
             shapes=frozenset(_SHAPES_3D + _SHAPES_2D),
-            effects=frozenset({"gravity", "springs", "drag", "loads"}),
+            effects=frozenset({"gravity", "springs", "drag", "loads", "contact"}),
             integrators=INTEGRATORS,
             notes=dict(INTEGRATOR_NOTES),
         )
@@ -696,7 +1046,8 @@ class MujocoEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if mujoco is None:  # pragma: no cover
             return "the mujoco package is not installed"
-        return super().not_applicable(scene, integrator) or mujoco_limits(scene)
+        return (super().not_applicable(scene, integrator) or mujoco_limits(scene)
+                or contact_limits(scene))
 
     def build(self, scene: Scene, integrator: str, dt: float) -> MujocoModel:
         """The compiled model with the scene's initial state set (also used by benchmarks)."""
