@@ -14,8 +14,8 @@ engine's default) with, for each:
   (second order or above: exact for constant acceleration);
 * ``symplectic``: symplectic for the whole rigid-body system without damping or drag (rotation
   included: a semi-implicit Euler with an explicit gyroscopic term is not);
-* ``contact``: whether crosscheck can run it on a scene with contact. False everywhere today (no
-  adapter builds collision shapes yet); the contact issue fills it in.
+* ``contact``: whether crosscheck can run it on a scene with contact (the adapter then builds
+  collision shapes and programs the pair values: docs/engines.md, each engine's "Contact").
 
 ``FLUID`` lists the engines' grid-fluid schemes (the in-house solver's, crosscheck.sim.fluid),
 which are never offered as rigid-body integrators. ``INTEGRATOR_NAMES[engine]`` is what the
@@ -70,11 +70,12 @@ RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
     # eq_implicit_update / eq_discrete_update); the gyroscopic term is explicit or linearised, so
     # none is symplectic for a tumbling body. RK4 is the classic fourth-order method.
     "mujoco": (
-        _i("euler", 1, VELOCITY_FIRST, False),
-        _i("rk4", 4, EXACT, False),
-        _i("implicit", 1, VELOCITY_FIRST, False),
-        _i("implicitfast", 1, VELOCITY_FIRST, False),
-        _i("discrete", 1, VELOCITY_FIRST, False),
+        _i("euler", 1, VELOCITY_FIRST, False, contact=True),
+        _i("rk4", 4, EXACT, False, contact=True),
+        # Runs with contact, but chaotic on sliding boxes (docs/engines.md, MuJoCo, trap C9).
+        _i("implicit", 1, VELOCITY_FIRST, False, contact=True),
+        _i("implicitfast", 1, VELOCITY_FIRST, False, contact=True),
+        _i("discrete", 1, VELOCITY_FIRST, False, contact=True),
     ),
     # PyBullet's two kinds of body, both semi-implicit Euler (ENGINES.md); the gyroscopic term is
     # explicit (multibody: a tumbling body gains energy) or implicit (maximal: loses).
@@ -86,7 +87,7 @@ RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
     # the forces at the new positions (ENGINES.md: 4.900095 m in 1 s at dt = 1e-3); a kick-drift
     # pair in the other order, symplectic in the plane.
     "pymunk": (
-        _i("position_first", 1, POSITION_FIRST, True),
+        _i("position_first", 1, POSITION_FIRST, True, contact=True),
     ),
 }
 

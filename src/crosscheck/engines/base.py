@@ -56,7 +56,7 @@ class EngineBase:
     name = "base"
     # Why an engine lacks an effect, where a specific reason helps more than the generic one.
     effect_reasons: dict[str, str] = {
-        "contact": "contact is not mapped yet (reserved for the contact issue)",
+        "contact": "this engine's adapter does not map contact",
     }
 
     def capabilities(self) -> Capabilities:  # pragma: no cover - every adapter overrides
