@@ -367,9 +367,10 @@ def bounce_metrics(scene: Scene, run: Trajectory) -> dict[str, float]:
     and normal velocity ``w``. A *fall* is a maximal run of samples with ``w < -w_floor``; the
     k-th fall ends at the k-th impact. The impact time is extrapolated ballistically from the
     fall's last sample with h >= 0: ``t_j + (w_j + sqrt(w_j^2 + 2 g h_j)) / g``. The k-th apex is
-    the largest ``h + w^2 / (2 g)`` (the height the ball would reach in free flight, so sampling
-    does not clip it) over the samples after the k-th fall and up to the start of the next one
-    (0 when there are none: the ball did not bounce).
+    ``h + w^2 / (2 g)`` at the highest sample after the k-th fall and up to the start of the next
+    one: the height free flight reaches from that sample, so sampling does not clip the apex,
+    taken where the correction is smallest (an integrator's drift of that quantity along the
+    flight, ``g dt t / 2`` for symplectic Euler, then does not count).
 
     Compared: apexes k >= 1 whose ideal height ``h_k = e^(2k) H0`` is at least ``h_min =
     max(apex_min H0, 2 g ds^2)`` (``reference.params.apex_min``, default 0.01; ds the sampling
@@ -400,7 +401,8 @@ def bounce_metrics(scene: Scene, run: Trajectory) -> dict[str, float]:
         impacts.append(t[j] + (w[j] + np.sqrt(w[j] ** 2 + 2.0 * g * hj)) / g)
         stop = falls[i + 1][0] if i + 1 < len(falls) else len(t) - 1
         window = slice(last + 1, stop + 1)
-        apexes.append(float(np.max(h[window] + w[window] ** 2 / (2.0 * g))))
+        top = last + 1 + int(np.argmax(h[window]))
+        apexes.append(float(h[top] + w[top] ** 2 / (2.0 * g)))
     t_last = t[-1]
     compared = []
     for k in range(1, len(b.impacts) + 1):
