@@ -520,3 +520,10 @@ EXTRA_METRICS: dict[str, Callable[[Scene, Trajectory], dict]] = {
     "torque_free_intermediate": flip_period,
     "flip_period": flip_period,
 }
+
+
+# -- contact solutions (their own module; registered here so that every lookup sees them) -------
+from crosscheck.reference import contact_analytic as _contact  # noqa: E402
+
+SOLUTIONS.update(_contact.SOLUTIONS)
+EXTRA_METRICS.update(_contact.EXTRA_METRICS)
