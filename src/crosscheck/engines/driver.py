@@ -41,6 +41,32 @@ from crosscheck.state import Trajectory
 RUNAWAY_FACTOR = 1e6
 
 
+class WouldTimeOut(Exception):
+    """The run's steps, at the speed measured on its first ones, would take longer than the
+    cell's timeout: said before the run starts, instead of being killed at the deadline."""
+
+
+# Steps timed (after a warm-up step) to predict a run's length against its timeout, and the
+# margin the prediction must exceed the timeout by before the run is refused (a first-steps
+# speed is a guess: contact piles get slower as they settle, a fluid's steps vary).
+PREDICT_STEPS = 200
+PREDICT_MARGIN = 2.0
+
+
+def predict_seconds(session: Session, total_steps: int) -> tuple[float, int, float]:
+    """(predicted seconds for total_steps, steps timed, seconds they took), from
+    ``PREDICT_STEPS`` steps after one warm-up step on a scratch session."""
+    n = min(PREDICT_STEPS, total_steps)
+    try:
+        session.advance(1)
+        t0 = time.perf_counter()
+        session.advance(n)
+        took = time.perf_counter() - t0
+    except StepFailure:
+        return 0.0, 0, 0.0
+    return took / max(n, 1) * total_steps, n, took
+
+
 @dataclass(frozen=True)
 class CostPlan:
     """How the cost pass repeats: at least ``min_repeats`` timed runs and ``min_seconds`` of
@@ -275,8 +301,11 @@ def measure_cost(open_session, steps: int, dt: float | None, plan: CostPlan = Co
 
 # -- one run -------------------------------------------------------------------------------------
 def run(engine, scene: Scene, integrator: str, dt: float, *,
-        cost: CostPlan | None = CostPlan(), fused: bool = True) -> RunResult:
-    """Both passes of one engine on one scene. ``cost=None`` skips the cost pass."""
+        cost: CostPlan | None = CostPlan(), fused: bool = True,
+        timeout: float | None = None) -> RunResult:
+    """Both passes of one engine on one scene. ``cost=None`` skips the cost pass. With a
+    ``timeout`` (s), a rigid run whose steps would clearly take longer is refused before it
+    starts (WouldTimeOut, with the prediction)."""
     from crosscheck.errors import EngineUnavailable
 
     reason = engine.not_applicable(scene, integrator)
@@ -285,6 +314,17 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     if scene.fluid is not None:
         return _run_fluid(engine, scene, integrator, dt, cost)
     plan = sampling_plan(scene, dt)
+    if timeout is not None and plan.total_steps > PREDICT_STEPS:
+        scratch = engine.open(scene, integrator, dt)
+        try:
+            predicted, n, took = predict_seconds(scratch, plan.total_steps)
+        finally:
+            scratch.close()
+        if predicted > PREDICT_MARGIN * timeout:
+            raise WouldTimeOut(
+                f"{plan.total_steps} steps would take about {predicted:.3g} s at the speed of "
+                f"the first {n} ({1e6 * took / n:.3g} us/step), more than {PREDICT_MARGIN:g} x "
+                f"the cell's timeout of {timeout:g} s: not started")
     session = engine.open(scene, integrator, dt)
     try:
         traj, steps = record(session, scene, plan, fused=fused, label=engine.name,

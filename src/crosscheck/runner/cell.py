@@ -145,12 +145,17 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
         result.update(status="not_applicable", reason=reason)
         return result
 
-    from crosscheck.engines.driver import CostPlan, run
+    from crosscheck.engines.driver import CostPlan, WouldTimeOut, run
 
     t0 = time.perf_counter()
     cost = task.get("cost", True)  # True, False, or CostPlan fields
     plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan() if cost else None
-    ran = run(engine, scene, integrator, dt, cost=plan)
+    try:
+        ran = run(engine, scene, integrator, dt, cost=plan,
+                  timeout=float(task["timeout"]) if task.get("timeout") else None)
+    except WouldTimeOut as exc:
+        result.update(status="timeout", reason=str(exc))
+        return result
     run_seconds = time.perf_counter() - t0
     result["run_seconds"] = run_seconds
     if ran.cost is not None:
