@@ -314,7 +314,8 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     if scene.fluid is not None:
         return _run_fluid(engine, scene, integrator, dt, cost)
     plan = sampling_plan(scene, dt)
-    if timeout is not None and plan.total_steps > PREDICT_STEPS:
+    # Runs of under ten times the steps the prediction takes are simply run.
+    if timeout is not None and plan.total_steps > 10 * PREDICT_STEPS:
         scratch = engine.open(scene, integrator, dt)
         try:
             predicted, n, took = predict_seconds(scratch, plan.total_steps)
