@@ -213,10 +213,6 @@ def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
                                  "friction")
     if why is not None:
         return None, why
-    restitution, why = factor_pairs(
-        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
-    if why is not None:
-        return None, why
     bouncy = [p for p in colliding if p.material.restitution > 0]
     if bouncy and len(bouncy) < len(colliding):
         dead = next(p for p in colliding if p.material.restitution == 0)
@@ -225,6 +221,14 @@ def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
                       f"{bouncy[0].material.restitution:g} and pair {dead.a!r}-{dead.b!r} e = 0; "
                       "PyBullet has no one setting for both (CONTACTS.md C12: exact bounces need "
                       "contact ERP 0, which never corrects a resting penetration)")
+    restitution, why = factor_pairs(
+        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
+    if why is not None:
+        return None, why
+    restitution, why = factor_pairs(
+        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
+    if why is not None:
+        return None, why
     masses = [float(b.mass) for b in scene.bodies]
     ratio = max(masses) / min(masses)
     return {"kind": "impact" if bouncy else "resting", "friction": friction,
