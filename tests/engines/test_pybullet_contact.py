@@ -137,7 +137,7 @@ def test_partial_restitution_apexes():
     assert tops == pytest.approx([0.25, 0.0625, 0.015625], rel=0.08)
 
 
-# -- C10: maximal bodies on a multibody ground gain energy ------------------------------------------
+# -- C10: maximal bodies on a multibody ground gain energy -------------------------------------
 def test_c10_the_ground_has_the_bodies_kind():
     scene = case(body("ball", SPHERE, (0, 0, R + 1.0))
                  + pair("ball", "ground", restitution=1.0),

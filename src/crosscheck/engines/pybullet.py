@@ -8,8 +8,8 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
   the principal moments go in through ``changeDynamics(mass=m, localInertiaDiagonal=moments)``:
   ``createMultiBody`` has no full-tensor argument. The mass is passed again on purpose: for a
   maximal-coordinate body ``localInertiaDiagonal`` alone sets the mass to 0 (a static body).
-* No collision shape, and collision filter group and mask 0: nothing collides ("contact" is not
-  applicable until the contact issue).
+* Without contact: no collision shape, collision filter group and mask 0, nothing collides (with
+  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``).
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
