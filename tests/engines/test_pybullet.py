@@ -108,9 +108,10 @@ def test_capabilities_and_not_applicable():
     caps = engine.capabilities()
     assert caps.integrators == INTEGRATORS and caps.default_integrator == "multibody"
     assert caps.dimensions == {2, 3}
-    contact = _scene(3, 0.01, 1e-3, _body3d(), effects="contact = true")
-    assert "contact" in engine.not_applicable(contact, "multibody")
-    with pytest.raises(EngineUnavailable, match="contact"):
+    assert "contact" in caps.effects  # 3D: tests/engines/test_pybullet_contact.py
+    contact = _scene(2, 0.01, 1e-3, _body2d(), effects="contact = true")
+    assert "2D contact" in engine.not_applicable(contact, "multibody")
+    with pytest.raises(EngineUnavailable, match="2D contact"):
         engine.run(contact, "multibody", 1e-3)
     plain = _scene(3, 0.01, 1e-3, _body3d())
     assert "rk4" in engine.not_applicable(plain, "rk4")

@@ -8,8 +8,8 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
   the principal moments go in through ``changeDynamics(mass=m, localInertiaDiagonal=moments)``:
   ``createMultiBody`` has no full-tensor argument. The mass is passed again on purpose: for a
   maximal-coordinate body ``localInertiaDiagonal`` alone sets the mass to 0 (a static body).
-* No collision shape, and collision filter group and mask 0: nothing collides ("contact" is not
-  applicable until the contact issue).
+* Without contact: no collision shape, collision filter group and mask 0, nothing collides (with
+  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``).
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
@@ -108,9 +108,132 @@ PROBE_TOLERANCE = 1e-9
 # Engine options a case may pin in [engine_options.pybullet]: name -> (check, default, meaning).
 OPTIONS: dict[str, tuple[str, Any]] = {
     "solver_iterations": ("a positive integer", None),
+    # "defaults": contact scenes keep Bullet's contact parameters and iteration count (the pair
+    # values and geometry stay the adapter's): the comparison row of benchmarks/contact_pybullet
+    "contact_parameters": ('"recipe" or "defaults"', "recipe"),
 }
 
 _SHAPES = ("sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon")
+
+# Contact (docs/engines.md, PyBullet, "Contact"; measured in benchmarks/contact_pybullet.py).
+# Bullet clamps a combined friction to [-10, 10] (btManifoldResult, MAX_FRICTION).
+MAX_FRICTION = 10.0
+# Solver iterations for a contact scene whose largest body mass ratio reaches HEAVY_RATIO
+# (CONTACTS.md C18: 100 kg on 1 kg sinks 0.215 mm with PyBullet's 50, 0.034 mm with 200).
+HEAVY_RATIO = 100.0
+CONTACT_ITERATIONS_HEAVY = 200
+# The impact recipe (every colliding pair e > 0), set with setPhysicsEngineParameter; none of
+# these is readable back through getPhysicsEngineParameters in pybullet 3.2.7.
+IMPACT_PARAMETERS = {"restitutionVelocityThreshold": 0.0, "contactSlop": 0.0, "contactERP": 0.0,
+                     "warmStartingFactor": 0.0}
+# A per-surface value must reproduce every pair's value to this relative error (round-off of
+# exp / log and one product).
+PAIR_TOLERANCE = 1e-12
+
+
+def factor_pairs(items: list[str], pairs: list[tuple[str, str, float]],
+                 what: str) -> tuple[dict[str, float], str | None]:
+    """Per-surface values ``f`` with ``f[a] * f[b] == value`` for every pair (Bullet's product
+    rule), or the reason none exist.
+
+    Zeros first: a surface all of whose pairs are 0 gets 0 (it then zeroes only pairs that are 0
+    anyway); a pair of 0 whose two surfaces both have a positive pair cannot be a product. The
+    positive pairs are solved in log space (least squares, minimum norm: a body alone on the
+    ground gets sqrt(value) on both, CONTACTS.md's recipe) and every pair is checked to
+    ``PAIR_TOLERANCE``: a set of pair values that does not factor (e.g. a-b 0.3, b-c 0.3,
+    a-c 0.5 with a-b-c a triangle) is reported with the pair that misses.
+    """
+    out = {name: 1.0 for name in items}
+    positive: dict[str, bool] = {name: False for name in items}
+    for a, b, v in pairs:
+        if v > 0:
+            positive[a] = positive[b] = True
+    for name in items:
+        if not positive[name]:
+            out[name] = 0.0
+    for a, b, v in pairs:
+        if v == 0 and positive[a] and positive[b]:
+            return out, (f"{what} 0 on pair {a!r}-{b!r} is not a product of per-surface "
+                         f"values: both surfaces have pairs with {what} > 0")
+    pos = [(a, b, v) for a, b, v in pairs if v > 0]
+    if pos:
+        names = sorted({n for a, b, _ in pos for n in (a, b)}, key=items.index)
+        col = {n: i for i, n in enumerate(names)}
+        m = np.zeros((len(pos), len(names)))
+        rhs = np.empty(len(pos))
+        for k, (a, b, v) in enumerate(pos):
+            m[k, col[a]] += 1.0
+            m[k, col[b]] += 1.0
+            rhs[k] = math.log(v)
+        x = np.linalg.lstsq(m, rhs, rcond=None)[0]
+        for n in names:
+            out[n] = math.exp(float(x[col[n]]))
+        for a, b, v in pos:
+            got = out[a] * out[b]
+            if abs(got - v) > PAIR_TOLERANCE * v:
+                return out, (f"the pair values of {what} do not factor into per-surface values "
+                             f"(Bullet multiplies them): pair {a!r}-{b!r} wants {v:g}, the best "
+                             f"factors give {got:.6g}")
+    return out, None
+
+
+def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
+    """What the adapter gives Bullet for a contact scene, or why it cannot (not applicable).
+
+    ``kind``: "resting" when every colliding pair has restitution 0 (CONTACTS.md recipe 6(a),
+    friction / resting / stacks: default contact parameters), "impact" when every one has
+    restitution > 0 (restitution threshold, slop, processing threshold, contact ERP and warm
+    starting 0); a mix is not applicable (C12). ``friction`` / ``restitution``: per surface
+    (body, static, "ground"), each pair's value their product.
+    """
+    if scene.dimension != 3:
+        return None, ("2D contact is not mapped for PyBullet: the planar chain would need its "
+                      "link to carry the 2D shape extruded along z (as MuJoCo's prisms); not "
+                      "done")
+    from crosscheck.scene.contact import GROUND
+
+    items = list(scene.body_names) + list(scene.static_names)
+    if scene.ground is not None:
+        items.append(GROUND)
+    colliding = [p for p in scene.contact_pairs() if p.material.collide]
+    for p in colliding:
+        m = p.material
+        if m.rolling_friction > 0 or m.torsional_friction > 0:
+            what = "rolling" if m.rolling_friction > 0 else "torsional"
+            value = m.rolling_friction if m.rolling_friction > 0 else m.torsional_friction
+            return None, (f"{what} friction is not mapped for PyBullet (pair {p.a!r}-{p.b!r} "
+                          f"has {what}_friction = {value:g} m): Bullet combines it as "
+                          "r_a mu_b + r_b mu_a with the lateral frictions "
+                          "(btManifoldResult::calculateCombinedRollingFriction), not a product, "
+                          "and that mapping was not built or measured")
+        if m.friction > MAX_FRICTION:
+            return None, (f"pair {p.a!r}-{p.b!r} has friction {m.friction:g}: Bullet clamps a "
+                          f"combined friction to {MAX_FRICTION:g}")
+    friction, why = factor_pairs(items, [(p.a, p.b, p.material.friction) for p in colliding],
+                                 "friction")
+    if why is not None:
+        return None, why
+    bouncy = [p for p in colliding if p.material.restitution > 0]
+    if bouncy and len(bouncy) < len(colliding):
+        dead = next(p for p in colliding if p.material.restitution == 0)
+        return None, ("mixed restitution: pair "
+                      f"{bouncy[0].a!r}-{bouncy[0].b!r} has e = "
+                      f"{bouncy[0].material.restitution:g} and pair {dead.a!r}-{dead.b!r} e = 0; "
+                      "PyBullet has no one setting for both (CONTACTS.md C12: exact bounces need "
+                      "contact ERP 0, which never corrects a resting penetration)")
+    restitution, why = factor_pairs(
+        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
+    if why is not None:
+        return None, why
+    restitution, why = factor_pairs(
+        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
+    if why is not None:
+        return None, why
+    masses = [float(b.mass) for b in scene.bodies]
+    ratio = max(masses) / min(masses)
+    return {"kind": "impact" if bouncy else "resting", "friction": friction,
+            "restitution": restitution, "mass_ratio": ratio,
+            "iterations": CONTACT_ITERATIONS_HEAVY if ratio >= HEAVY_RATIO else None}, None
 
 
 def engine_options(scene: Scene) -> dict[str, Any]:
@@ -126,6 +249,8 @@ def engine_options(scene: Scene) -> dict[str, Any]:
         if key == "solver_iterations":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise CaseError(scene.source, field, OPTIONS[key][0], value)
+        if key == "contact_parameters" and value not in ("recipe", "defaults"):
+            raise CaseError(scene.source, field, OPTIONS[key][0], value)
         out[key] = value
     return out
 
@@ -263,6 +388,14 @@ class PybulletModel:
         self.planar_joints = self.dim == 2 and not self.maximal
         self.options = engine_options(scene) if options is None else options
         self.probe_result: dict[str, Any] | None = None
+        self.contact = bool(scene.effects.contact)
+        self.plan: dict[str, Any] | None = None
+        if self.contact:
+            self.plan, reason = contact_plan(scene)
+            if reason is not None:
+                raise ValueError(f"PyBullet cannot run this contact scene: {reason}")
+            if self.options["contact_parameters"] == "defaults":
+                self.plan = {**self.plan, "iterations": None, "kind_used": "defaults"}
         self.cid = _p.connect(_p.DIRECT)
         if self.cid < 0:  # pragma: no cover
             raise RuntimeError("pybullet could not open a DIRECT client")
@@ -287,6 +420,13 @@ class PybulletModel:
                                   contactBreakingThreshold=CONTACT_BREAKING_THRESHOLD)
         if self.options.get("solver_iterations") is not None:
             kw["numSolverIterations"] = int(self.options["solver_iterations"])
+        elif self.plan is not None and self.plan["iterations"] is not None:
+            kw["numSolverIterations"] = self.plan["iterations"]  # C18: mass ratio >= 100
+        if self.plan is not None and self._impact:
+            # CONTACTS.md recipe 6(a), impacts: no restitution threshold (C11), no slop, no
+            # Baumgarte velocity (contact ERP 0: exact bounces, penetration never corrected,
+            # C12), no warm starting of the previous step's impulses.
+            kw.update(IMPACT_PARAMETERS)
         _p.setPhysicsEngineParameter(physicsClientId=self.cid, **kw)
         # Gravity stays 0 until the probe step is done; set_initial_state sets the scene's.
         _p.setGravity(0.0, 0.0, 0.0, physicsClientId=self.cid)
@@ -359,7 +499,9 @@ class PybulletModel:
                                              forces=[0.0, 0.0, 0.0], physicsClientId=cid)
             else:
                 uid = _p.createMultiBody(
-                    baseMass=float(body.mass), baseCollisionShapeIndex=-1,
+                    baseMass=float(body.mass),
+                    baseCollisionShapeIndex=(self._collision_shape(body.shape)
+                                             if self.contact else -1),
                     baseVisualShapeIndex=-1, basePosition=pos.tolist(),
                     baseOrientation=_xyzw(quat), baseInertialFramePosition=com.tolist(),
                     baseInertialFrameOrientation=_xyzw(q_axes),
@@ -367,8 +509,103 @@ class PybulletModel:
                 self._set_mass(uid, -1, body.mass, moments)
                 self._neutralise(uid, ())
             self.bodies.append(_BodyMap(uid=uid, moments=moments, q_axes=q_axes, com3=com))
+        if self.contact:
+            self._build_contact()
         self._q_axes = np.array([b.q_axes for b in self.bodies]).reshape(-1, 4)
         self._com3 = np.array([b.com3 for b in self.bodies]).reshape(-1, 3)
+
+    # -- contact (docs/engines.md, PyBullet, "Contact") ---------------------------------------
+    def _collision_shape(self, shape) -> int:
+        """A collision shape in the body frame. createMultiBody places a base's collision shape
+        relative to the link frame (the declared body frame), not the inertial frame (measured:
+        a box with an offset, rotated inertial frame lands centred on the body frame), so every
+        shape, centred on its body-frame origin or given in body-frame coordinates, goes in at
+        the identity."""
+        cid = self.cid
+        kind = shape.kind
+        if kind == "sphere":
+            idx = _p.createCollisionShape(_p.GEOM_SPHERE, radius=float(shape.radius),
+                                          physicsClientId=cid)
+        elif kind == "box":
+            idx = _p.createCollisionShape(_p.GEOM_BOX,
+                                          halfExtents=[0.5 * float(x) for x in shape.size],
+                                          physicsClientId=cid)
+        elif kind == "capsule":  # btCapsuleShapeZ: height is the cylindrical part, as the scene
+            idx = _p.createCollisionShape(_p.GEOM_CAPSULE, radius=float(shape.radius),
+                                          height=float(shape.length), physicsClientId=cid)
+        elif kind == "cylinder":  # btCylinderShapeZ: full height along z
+            idx = _p.createCollisionShape(_p.GEOM_CYLINDER, radius=float(shape.radius),
+                                          height=float(shape.length), physicsClientId=cid)
+        elif kind == "mesh":  # vertices without indices: btConvexHullShape, the convex hull
+            idx = _p.createCollisionShape(
+                _p.GEOM_MESH, vertices=np.asarray(shape.vertices, float).tolist(),
+                physicsClientId=cid)
+        else:  # pragma: no cover - 2D contact is not applicable (contact_plan)
+            raise ValueError(f"no PyBullet collision shape for {kind!r}")
+        if idx < 0:  # pragma: no cover
+            raise RuntimeError(f"pybullet refused the {kind} collision shape")
+        return idx
+
+    def _material(self, uid: int, name: str) -> None:
+        """The surface's factor of every pair value (Bullet multiplies the two surfaces'),
+        rolling and spinning friction 0; impact scenes: contact processing threshold 0."""
+        plan = self.plan
+        kw: dict[str, Any] = dict(lateralFriction=plan["friction"][name],
+                                  restitution=plan["restitution"][name],
+                                  rollingFriction=0.0, spinningFriction=0.0)
+        if self._impact:
+            kw["contactProcessingThreshold"] = 0.0
+        _p.changeDynamics(uid, -1, physicsClientId=self.cid, **kw)
+
+    def _build_contact(self) -> None:
+        """Materials on the bodies, the ground plane and the statics as static bodies of the
+        integrator's kind (maximal bodies need a maximal ground: CONTACTS.md C10), and the
+        ``collide = false`` pairs filtered out. The bodies' own collision filter stays group and
+        mask 0 until ``_enable_contact`` (after the probe, which must touch nothing)."""
+        from crosscheck.scene.contact import GROUND
+
+        cid = self.cid
+        scene = self.scene
+        self.surfaces: dict[str, int] = {}
+        for b, body in zip(self.bodies, scene.bodies, strict=True):
+            self._material(b.uid, body.name)
+            self.surfaces[body.name] = b.uid
+        for st in scene.statics:
+            uid = _p.createMultiBody(
+                baseMass=0.0, baseCollisionShapeIndex=self._collision_shape(st.shape),
+                baseVisualShapeIndex=-1, basePosition=[float(x) for x in st.position],
+                baseOrientation=_xyzw(np.asarray(st.orientation, float)),
+                useMaximalCoordinates=self.maximal, physicsClientId=cid)
+            self._material(uid, st.name)
+            _p.setCollisionFilterGroupMask(uid, -1, 1, 1, physicsClientId=cid)
+            self.surfaces[st.name] = uid
+        if scene.ground is not None:
+            n = np.asarray(scene.ground.normal, float)
+            # btStaticPlaneShape(normal, 0) in the ground body's frame, the body at n * offset
+            plane = _p.createCollisionShape(_p.GEOM_PLANE, planeNormal=n.tolist(),
+                                            physicsClientId=cid)
+            uid = _p.createMultiBody(
+                baseMass=0.0, baseCollisionShapeIndex=plane, baseVisualShapeIndex=-1,
+                basePosition=(n * float(scene.ground.offset)).tolist(),
+                useMaximalCoordinates=self.maximal, physicsClientId=cid)
+            self._material(uid, GROUND)
+            # A static rigid body's default group (2) is not in the mask 1 the bodies get.
+            _p.setCollisionFilterGroupMask(uid, -1, 1, 1, physicsClientId=cid)
+            self.surfaces[GROUND] = uid
+        for pair in scene.contact_pairs():
+            if not pair.material.collide:
+                _p.setCollisionFilterPair(self.surfaces[pair.a], self.surfaces[pair.b], -1, -1,
+                                          0, physicsClientId=cid)
+
+    @property
+    def _impact(self) -> bool:
+        """The impact parameters are set (an e > 0 scene, unless pinned to Bullet's defaults)."""
+        return (self.plan is not None and self.plan["kind"] == "impact"
+                and self.options["contact_parameters"] == "recipe")
+
+    def _enable_contact(self) -> None:
+        for b in self.bodies:
+            _p.setCollisionFilterGroupMask(b.uid, -1, 1, 1, physicsClientId=self.cid)
 
     def _local_offset(self, body_index: int, point) -> np.ndarray:
         """A body-frame point relative to the centre of mass, in the frame ``read_raw`` rotates.
@@ -658,6 +895,8 @@ class PybulletModel:
         """Probe once (what PyBullet does not report back), then place the t = 0 state."""
         poses = self.base_poses()
         self.probe_result = self.probe()
+        if self.contact:
+            self._enable_contact()
         self.set_initial_state(poses)
         return self
 
@@ -714,6 +953,86 @@ class PybulletModel:
         return effective
 
     # -- read back ------------------------------------------------------------------------
+    def contact_settings(self, params: dict, problems: list[str]) -> dict[str, Any]:
+        """The contact model read back: each surface's material (getDynamicsInfo), each pair's
+        product against the pair value, and the parameters, readable or not."""
+        cid = self.cid
+        plan = self.plan
+        surfaces = []
+        read: dict[str, tuple[float, float]] = {}
+        # getDynamicsInfo of a maximal-coordinate body reports a restitution that is not the
+        # one set (measured: 0.0 after setting 0.3, 0.2 after setting 0; the bounce follows the
+        # value set, tests/engines/test_pybullet_contact.py): only its friction is checked.
+        for name, uid in self.surfaces.items():
+            info = _p.getDynamicsInfo(uid, -1, physicsClientId=cid)
+            want = (plan["friction"][name], plan["restitution"][name])
+            read[name] = (info[1], want[1] if self.maximal else info[5])
+            entry = {"name": name, "lateral_friction": info[1], "restitution_set": want[1],
+                     "restitution_read": info[5] if not self.maximal else "not readable",
+                     "collision_margin": info[11]}
+            if not self.maximal:
+                entry.update(rolling_friction=info[6], spinning_friction=info[7],
+                             contact_damping=info[8], contact_stiffness=info[9])
+                if info[6] != 0.0 or info[7] != 0.0:
+                    problems.append(f"{name!r}: rolling or spinning friction read back non-zero")
+            surfaces.append(entry)
+            if read[name] != want:
+                problems.append(f"{name!r}: friction/restitution read back {read[name]}, "
+                                f"asked {want}")
+        pairs = []
+        for pair in self.scene.contact_pairs():
+            m = pair.material
+            entry: dict[str, Any] = {"a": pair.a, "b": pair.b, "source": m.source,
+                                     "collide": m.collide}
+            if m.collide:
+                fr = read[pair.a][0] * read[pair.b][0]
+                er = read[pair.a][1] * read[pair.b][1]
+                entry.update(friction=m.friction, restitution=m.restitution,
+                             bullet_friction=fr, bullet_restitution=er)
+                for what, got, want in (("friction", fr, m.friction),
+                                        ("restitution", er, m.restitution)):
+                    if abs(got - want) > PAIR_TOLERANCE * want:
+                        problems.append(f"pair {pair.a!r}-{pair.b!r}: Bullet's {what} "
+                                        f"product {got!r}, pair value {want!r}")
+            else:
+                entry["filter"] = "setCollisionFilterPair(enable=0)"
+            pairs.append(entry)
+        impact = self._impact
+        default = "Bullet's default (not set)"
+        return {
+            "kind": plan["kind"],
+            "parameters": self.options["contact_parameters"],
+            "kind_reason": ("every colliding pair has restitution > 0" if impact else
+                            "every colliding pair has restitution 0"),
+            "body_kind": _contact_note(plan["kind"], self.maximal),
+            "ground_and_statics": ("static bodies, useMaximalCoordinates="
+                                   f"{self.maximal} like the bodies (CONTACTS.md C10)"),
+            "shapes": ("sphere, box, capsule (cylindrical length), cylinder: Bullet's own; mesh: "
+                       "btConvexHullShape of its vertices, collided as its convex hull; ground: "
+                       "btStaticPlaneShape; all at the body frame"),
+            "combination": "Bullet multiplies the two surfaces' values; each surface carries "
+                           "a factor of every pair value (solved in log space, checked per pair)",
+            "surfaces": surfaces,
+            "pairs": pairs,
+            "num_solver_iterations": params["numSolverIterations"],
+            "iterations_reason": (
+                "engine_options.pybullet.solver_iterations" if
+                self.options.get("solver_iterations") is not None else
+                f"largest body mass ratio {plan['mass_ratio']:.4g} "
+                + (f">= {HEAVY_RATIO:g}: 200 (C18)" if plan["iterations"] else
+                   f"< {HEAVY_RATIO:g}: Bullet's default")),
+            "not_readable": {
+                "restitution_velocity_threshold": 0.0 if impact else default,
+                "contact_slop": 0.0 if impact else default,
+                "contact_erp": 0.0 if impact else default,
+                "warm_starting_factor": 0.0 if impact else default,
+                "contact_processing_threshold": 0.0 if impact else default,
+                "note": "set through setPhysicsEngineParameter / changeDynamics; pybullet 3.2.7 "
+                        "reports none of them back (getPhysicsEngineParameters has only the "
+                        "time step, sub-steps, solver iterations and gravity)",
+            },
+        }
+
     def settings(self) -> tuple[dict[str, Any], list[str]]:
         """Settings read back from PyBullet, and the mismatches with what the scene needs."""
         cid = self.cid
@@ -788,7 +1107,11 @@ class PybulletModel:
             "sleeping": {"set": "ACTIVATION_STATE_DISABLE_SLEEPING", "readable": False},
             "contact_breaking_threshold": {"set": CONTACT_BREAKING_THRESHOLD, "readable": False,
                                            "note": "global to the process (ENGINES.md trap 10)"},
-            "collisions": "none: no collision shapes, collision filter group and mask 0",
+            "collisions": ("none: no collision shapes, collision filter group and mask 0"
+                           if not self.contact else
+                           "collision shapes; filter group 1, mask 1 on every body, static and "
+                           "the ground; setCollisionFilterPair(0) on collide = false pairs"),
+            "contact": self.contact_settings(params, problems) if self.contact else None,
             "max_rotation_per_step": MAX_ROTATION_PER_STEP,
             "forces": ("none" if not self.forces_active else
                        "TORQUE_CONTROL generalised forces per step from the start-of-step state"
@@ -797,6 +1120,22 @@ class PybulletModel:
                        "start-of-step state"),
             "options": dict(self.options),
         }, problems
+
+
+def _contact_note(kind: str, maximal: bool) -> str:
+    """What the integrator's body kind costs on this kind of contact scene (measured in
+    benchmarks/contact_pybullet.py; docs/engines.md, PyBullet, "Contact")."""
+    if kind == "resting":
+        return ("multibody bodies and ground, default contact parameters: CONTACTS.md's recipe"
+                if not maximal else
+                "maximal bodies and ground: runs, but friction on a sliding box is 1-3 % too "
+                "strong at dt = 1e-3 (CONTACTS.md C13; the recipe for friction is multibody)")
+    return ("maximal bodies and ground with the impact parameters: CONTACTS.md's bounce recipe"
+            if maximal else
+            "multibody bodies and ground with the impact parameters: runs, but the multibody "
+            "solver has no split impulse and an elastic bounce gains height (CONTACTS.md "
+            "recipe G: +0.44 % per bounce at dt = 1e-3, +0.04 % at 1e-4; the bounce recipe is "
+            "maximal)")
 
 
 class PybulletEngine(EngineBase):
@@ -811,7 +1150,7 @@ class PybulletEngine(EngineBase):
         return Capabilities(
             dimensions=frozenset({2, 3}),
             shapes=frozenset(_SHAPES),
-            effects=frozenset({"gravity", "springs", "drag", "loads"}),
+            effects=frozenset({"gravity", "springs", "drag", "loads", "contact"}),
             integrators=INTEGRATORS,
             notes=dict(INTEGRATOR_NOTES),
         )
@@ -822,7 +1161,10 @@ class PybulletEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if _p is None:  # pragma: no cover
             return "the pybullet package is not installed"
-        return super().not_applicable(scene, integrator)
+        reason = super().not_applicable(scene, integrator)
+        if reason is not None or not scene.effects.contact:
+            return reason
+        return contact_plan(scene)[1]
 
     def open(self, scene: Scene, integrator: str, dt: float) -> PybulletModel:
         model = PybulletModel(scene, integrator, dt)
