@@ -325,12 +325,14 @@ def test_a_thousand_sphere_pile_is_not_quadratic():
 
 
 def test_resting_mean_uses_only_the_final_resting_stretch():
-    # A ball falls (3 mm deep only while moving, at t = 0.1), then rests 1 mm deep from t = 0.5.
+    # A ball rests 2 mm deep until t = 0.2, moves (3 mm deep at t = 0.3), then rests 1 mm deep
+    # from t = 0.5: only the last stretch counts.
     scene = load(case(body("ball", "{ sphere = { radius = 0.1 } }")))
     t = np.linspace(0, 1, 101)
     z = np.where(t < 0.5, 0.2, 0.099)
     vz = np.where(t < 0.5, -1.0, 0.0)
-    z[10] = 0.097
+    z[:21], vz[:21] = 0.098, 0.0
+    z[30] = 0.097
     traj = traj3(t, np.stack([0 * t, 0 * t, z], -1), vel=np.stack([0 * t, 0 * t, vz], -1))
     ms = metrics(scene, traj)
     assert ms["penetration_max"].value == pytest.approx(3e-3, rel=1e-9)
@@ -459,7 +461,9 @@ def test_box_sliding_to_rest_with_constant_deceleration():
     x = v0 * s - dec * s**2 / 2
     v = np.maximum(v0 - dec * t, 0.0)
     d = np.array([0.6, 0.8, 0.0])  # sliding at an angle to the axes
-    traj = traj3(t, x[:, None] * d + [0.5, 0.5, 0.1], vel=v[:, None] * d)
+    vel = v[:, None] * d
+    vel[:, 2] = 0.01 * np.cos(40 * t)  # a normal jitter that never stops: only v_t counts
+    traj = traj3(t, x[:, None] * d + [0.5, 0.5, 0.1], vel=vel)
     ms = metrics(scene, traj)
     speed = cm.STOP_SPEED
     assert ms["stop_time"].value == pytest.approx((v0 - speed) / dec, rel=1e-12)

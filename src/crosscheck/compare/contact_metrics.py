@@ -69,9 +69,10 @@ Impacts and restitution (body-ground)
     ``restitution_error_max`` (-): ``max |e - e_pair|`` over resolvable impacts.
 Sliding and rolling (a scene of one body and a ground)
     ``v_t = v - (n . v) n``. ``stop_time`` (s): the time ``|v_t|`` crosses ``STOP_SPEED`` for the
-    last time (linear between the two samples around it; the start when it never exceeds it);
-    ``stop_distance`` (m): ``|P_t (x(t_stop) - x(t_0))|`` (``P_t`` the tangential projection, ``x``
-    by cubic Hermite with the velocities: exact for constant deceleration). A body still faster
+    last time, extrapolated from the last sample above it with the deceleration of the interval
+    before (exact for constant deceleration; linear in speed when it is not decelerating; the
+    start when it never exceeds it); ``stop_distance`` (m): ``|P_t (x(t_stop) - x(t_0))|``
+    (``P_t`` the tangential projection, ``x`` extrapolated the same way). A body still faster
     than ``STOP_SPEED`` at the end does not stop: not measurable. ``slip_velocity_max`` (m/s,
     sphere, circle, cylinder): ``max |P_t (v + w x (p - x))|`` over contact samples, ``p`` the
     support point in ``-n``. ``rolling_acceleration`` (m/s^2): the least-squares slope of
