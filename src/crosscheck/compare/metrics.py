@@ -40,6 +40,9 @@ Other
     ``blowup_time``: the first sample time with a non-finite state (the adapter stopped there) or
     with ``|E(t) - E(0)| > 10 E_avail`` (scales.BLOWUP_FACTOR and scales.available_energy);
     absent when the run did not blow up.
+    Contact scenes (``effects.contact``): the penetration, energy gain, restitution, sliding,
+    rolling and resting metrics of :mod:`crosscheck.compare.contact_metrics`, computed from the
+    Trajectory and the scene's geometry, never from an engine's contact report.
     Extra metrics of an analytic solution (``EXTRA_METRICS[name](scene, traj)``, e.g.
     ``flip_period_error``) are added as they come; one the run gives nothing to measure (no
     flip) has value None and ``not_measured`` says why.
@@ -52,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from crosscheck.compare import scales
+from crosscheck.compare import contact_metrics, scales
 from crosscheck.rotations import quat_angle_between
 from crosscheck.scene.model import Scene
 from crosscheck.state import Trajectory
@@ -63,6 +66,7 @@ UNITS = {
     "orientation_error_max": "rad", "angular_velocity_error_max": "rad/s",
     "out_of_plane_drift": "m", "out_of_plane_tilt": "rad",
     "out_of_plane_angular_velocity": "rad/s", "blowup_time": "s",
+    **contact_metrics.UNITS,
 }
 # Points kept per time series for plots: enough for a smooth curve, bounded memory per cell.
 SERIES_POINTS = 400
@@ -394,6 +398,8 @@ def compute_metrics(scene: Scene, traj: Trajectory, ref: Trajectory | None = Non
     if ref_at is not None:
         reference_metrics(scene, traj, ref_at, out, energy, e_scale)
     out_of_plane_metric(traj, out)
+    if scene.effects.contact:
+        contact_metrics.contact_metrics(scene, traj, out, energy, basis, ref_at)
     if extra is not None:
         for name, value in extra(scene, traj).items():
             if isinstance(value, tuple):  # (None, reason): the run had nothing to measure
