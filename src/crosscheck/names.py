@@ -80,8 +80,8 @@ RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
     # PyBullet's two kinds of body, both semi-implicit Euler (ENGINES.md); the gyroscopic term is
     # explicit (multibody: a tumbling body gains energy) or implicit (maximal: loses).
     "pybullet": (
-        _i("multibody", 1, VELOCITY_FIRST, False),
-        _i("maximal", 1, VELOCITY_FIRST, False),
+        _i("multibody", 1, VELOCITY_FIRST, False, contact=True),
+        _i("maximal", 1, VELOCITY_FIRST, False, contact=True),
     ),
     # Pymunk (Chipmunk, 2D): positions first with the old velocities, then the velocities with
     # the forces at the new positions (ENGINES.md: 4.900095 m in 1 s at dt = 1e-3); a kick-drift

@@ -46,7 +46,7 @@ def test_every_entry_is_well_formed():
         for info in infos:
             assert info.scheme in names.SCHEMES, (engine, info)
             assert info.order >= 1 and isinstance(info.symplectic, bool), (engine, info)
-            assert info.contact is False, (engine, info)  # no adapter runs contact yet
+            assert isinstance(info.contact, bool), (engine, info)
             # second order and above is exact under constant acceleration, first order is not
             assert (info.scheme == names.EXACT) == (info.order >= 2), (engine, info)
         assert not set(names.rigid_names(engine)) & set(names.fluid_names(engine))
@@ -158,3 +158,14 @@ def test_pytest_plugin_refuses_an_unknown_integrator_option(tmp_path):
                   "--collect-only", "-q")
     assert res.returncode == 0, res.stdout + res.stderr
     assert "cases/ok.toml::mujoco-rk4" in res.stdout
+
+
+def test_the_contact_flags_agree_with_what_each_adapter_can_simulate():
+    # names.py says which integrators run with contact; each adapter's capabilities say
+    # whether it maps contact at all. They must agree, else the registry lies to the runner.
+    from crosscheck.engines import get_engine
+    from crosscheck.names import RIGID
+
+    for engine, infos in RIGID.items():
+        maps_contact = "contact" in get_engine(engine).capabilities().effects
+        assert all(info.contact == maps_contact for info in infos), (engine, maps_contact)
