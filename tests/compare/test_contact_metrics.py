@@ -599,3 +599,36 @@ position = [{1.0 + shift[0]}, {shift[1]}, {0.2 + shift[2]}]
             assert b is None, name
         else:
             assert b == pytest.approx(a, rel=1e-9, abs=1e-12), name
+
+
+def test_the_penetration_series_is_the_deepest_pair_at_each_sample():
+    # The report plots it: at every sample, the largest depth over the colliding pairs.
+    from crosscheck.compare.metrics import compute_metrics
+
+    scene = load_case_text(_SERIES_CASE)
+    t = np.array([0.0, 0.1, 0.2])
+    z = np.array([0.1005, 0.0990, 0.0997])  # sphere of radius 0.1 above, 1 mm in, 0.3 mm in
+    traj = Trajectory(t=t, com=np.array([[[0.0, 0.0, zz]] for zz in z]),
+                      vel=np.zeros((3, 1, 3)), omega=np.zeros((3, 1, 3)),
+                      quat=np.tile([1.0, 0.0, 0.0, 0.0], (3, 1, 1)))
+    series = compute_metrics(scene, traj).series["penetration"]
+    np.testing.assert_allclose(series["y"], [0.0, 1e-3, 3e-4], atol=1e-12)
+
+
+_SERIES_CASE = """
+[case]
+name = "series"
+dimension = 3
+[run]
+duration = 0.2
+dt = 1e-3
+sample_every = 0.1
+[effects]
+contact = true
+[ground]
+[[bodies]]
+name = "ball"
+shape = { sphere = { radius = 0.1 } }
+mass = 1.0
+position = [0.0, 0.0, 0.1005]
+"""

@@ -276,7 +276,7 @@ class PairRows:
     """One row per (sample, pair) examined: body ``a``, other ``b`` (a body index, a static index,
     or -1 for the ground), ``kind`` 0 body-body, 1 body-static, 2 body-ground, and the gap."""
 
-    t: np.ndarray
+    t: np.ndarray  # the sample's index in the Trajectory (not its time)
     a: np.ndarray
     b: np.ndarray
     kind: np.ndarray
@@ -732,6 +732,11 @@ def _penetration_metrics(scene: Scene, traj: Trajectory, out: MetricSet, pen: Pe
     depth = np.maximum(0.0, -rows.gap)
     out.add("penetration_max", float(depth.max()) if len(depth) else 0.0,
             note="crosscheck's own distance computation, over every sample and colliding pair")
+    # The deepest pair at every sample, for the report's penetration plot.
+    per_sample = np.zeros(len(traj.t))
+    if len(depth):
+        np.maximum.at(per_sample, rows.t.astype(np.int64), depth)  # rows.t: sample index
+    out.add_series("penetration", traj.t, per_sample)
     mean, n_pairs, n_samples = _resting_mean(rows, traj.t)
     rule = (f"in contact: gap <= {CONTACT_GAP_FRACTION:g} x body size; resting: relative speed "
             f"bound < {REST_SPEED:g} m/s over the last {REST_FRACTION:.0%} of the run")

@@ -51,6 +51,7 @@ PANELS = (  # series name, panel title
     ("angular_momentum_drift", "angular momentum drift"),
     ("position_error", "position error vs reference (m)"),
     ("orientation_error", "orientation error vs reference (rad)"),
+    ("penetration", "contact penetration, deepest pair (m)"),
 )
 
 
