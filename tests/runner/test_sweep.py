@@ -201,3 +201,23 @@ def test_target_picks_the_cheapest_qualifying_point():
     assert cheapest(series, 1e-9) is None
     assert "none reaches it" in table("e_error", series, target=1e-9)
     assert "cheapest is inhouse rk4 at dt = 0.002" in table("e_error", series, target=5e-5)
+
+
+def test_a_structure_that_collapses_or_gains_energy_is_unstable_for_the_frontier():
+    # A contact stack can fail without a blow-up: it falls (collapse_time has a value) or a
+    # solver pumps energy in (energy_gain over the case's limit). The frontier counts both.
+    from crosscheck.study.sweep import analyse, stability
+
+    def cell(dt, collapse=None, gain_passed=True):
+        metrics = {"rest_drift_max": {"value": dt, "limit": 1.0},
+                   "energy_gain": {"value": 0.0, "limit": 1e-3, "passed": gain_passed}}
+        if collapse is not None:
+            metrics["collapse_time"] = {"value": collapse}
+        return {"engine": "mujoco", "integrator": "euler", "dt": dt, "status": "pass",
+                "metrics": metrics, "cost": 1.0}
+
+    cells = [cell(0.004, collapse=0.7), cell(0.002, gain_passed=False), cell(0.001),
+             cell(0.0005)]
+    assert [stability(c) for c in cells] == ["collapsed", "gained_energy", "pass", "pass"]
+    _, (series,) = analyse(cells, "rest_drift_max")
+    assert series.largest_stable_dt == 0.001 and series.smallest_unstable_dt == 0.002

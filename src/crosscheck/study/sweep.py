@@ -43,7 +43,23 @@ RESOLUTION_FACTOR = 10.0
 DEFAULT_METRICS = ("position_error_max", "orientation_error_max", "angular_velocity_error_max",
                    "velocity_error_max")
 CONSERVATION_METRICS = ("energy_drift", "angular_momentum_drift", "linear_momentum_drift")
-UNSTABLE = frozenset({"blowup", "error", "timeout"})
+UNSTABLE = frozenset({"blowup", "error", "timeout", "collapsed", "gained_energy"})
+
+
+def stability(cell: dict[str, Any]) -> str:
+    """The cell's status as far as stability goes: its own status, or, for a run that did not
+    blow up, ``collapsed`` when a structure that should stand fell (its ``collapse_time`` has a
+    value: contact cases that start at rest) and ``gained_energy`` when ``energy_gain`` broke
+    the case's limit for it. A contact structure can fail without any value running away."""
+    status = cell.get("status", "")
+    if status in UNSTABLE or status == "not_applicable":
+        return status
+    metrics = cell.get("metrics") or {}
+    if (metrics.get("collapse_time") or {}).get("value") is not None:
+        return "collapsed"
+    if (metrics.get("energy_gain") or {}).get("passed") is False:
+        return "gained_energy"
+    return status
 REL = 1e-9  # two steps within this relative difference are the same step
 
 
@@ -93,7 +109,7 @@ def pick_metric(cells: list[dict[str, Any]], wanted: str | None = None) -> str |
     def values(name: str) -> list[float]:
         out = []
         for c in cells:
-            if c.get("status") in UNSTABLE:
+            if stability(c) in UNSTABLE:
                 continue
             v = (c.get("metrics") or {}).get(name, {}).get("value")
             if isinstance(v, int | float) and math.isfinite(v):
@@ -215,19 +231,20 @@ def analyse(cells: list[dict[str, Any]], metric: str | None = None,
             continue
         metrics = c.get("metrics") or {}
         m = metrics.get(metric or "", {})
-        stable = c["status"] not in UNSTABLE
+        status = stability(c)
+        stable = status not in UNSTABLE
         error = m.get("value") if stable else None
         why = (m.get("not_measured") or "") if stable and error is None else ""
         dt = float(c["dt"])
-        everything.setdefault(key, []).append((dt, c["status"]))
+        everything.setdefault(key, []).append((dt, status))
         if sweep_dts is not None and not any(_same(dt, d) for d in sweep_dts):
-            s.probes.append({"dt": dt, "status": c["status"], "error": error,
+            s.probes.append({"dt": dt, "status": status, "error": error,
                              "not_measured": why, "cost": c.get("cost")})
             continue
         s.dts.append(dt)
         s.errors.append(error)
         s.costs.append(c.get("cost"))
-        s.statuses.append(c["status"])
+        s.statuses.append(status)
         s.not_measured.append(why)
         s.resolutions.append(_resolution_of(metrics, metric or "") if stable else None)
     for key, s in groups.items():
