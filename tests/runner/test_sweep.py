@@ -221,3 +221,8 @@ def test_a_structure_that_collapses_or_gains_energy_is_unstable_for_the_frontier
     assert [stability(c) for c in cells] == ["collapsed", "gained_energy", "pass", "pass"]
     _, (series,) = analyse(cells, "rest_drift_max")
     assert series.largest_stable_dt == 0.001 and series.smallest_unstable_dt == 0.002
+    # A case that does not say its bodies must stand (no rest_drift_max limit): a body that
+    # leaves its settled position (a dropped ball) has not collapsed.
+    falling = cell(0.004, collapse=0.1)
+    falling["metrics"]["rest_drift_max"].pop("limit")
+    assert stability(falling) == "pass"

@@ -48,14 +48,18 @@ UNSTABLE = frozenset({"blowup", "error", "timeout", "collapsed", "gained_energy"
 
 def stability(cell: dict[str, Any]) -> str:
     """The cell's status as far as stability goes: its own status, or, for a run that did not
-    blow up, ``collapsed`` when a structure that should stand fell (its ``collapse_time`` has a
-    value: contact cases that start at rest) and ``gained_energy`` when ``energy_gain`` broke
-    the case's limit for it. A contact structure can fail without any value running away."""
+    blow up, ``collapsed`` when a structure that should stand fell (the case limits its
+    ``rest_drift_max`` and its ``collapse_time`` has a value) and ``gained_energy`` when
+    ``energy_gain`` broke the case's limit for it. A contact structure can fail without any
+    value running away."""
     status = cell.get("status", "")
     if status in UNSTABLE or status == "not_applicable":
         return status
     metrics = cell.get("metrics") or {}
-    if (metrics.get("collapse_time") or {}).get("value") is not None:
+    # Only where the case says the structure must stand (a limit on its rest drift): a ball
+    # dropped from rest also "leaves its settled position", and that is not a collapse.
+    stands = (metrics.get("rest_drift_max") or {}).get("limit") is not None
+    if stands and (metrics.get("collapse_time") or {}).get("value") is not None:
         return "collapsed"
     if (metrics.get("energy_gain") or {}).get("passed") is False:
         return "gained_energy"
