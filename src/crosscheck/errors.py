@@ -37,3 +37,10 @@ def _describe(value: object) -> str:
     if len(text) > 80:
         text = text[:77] + "..."
     return f"{text} ({type(value).__name__})"
+
+
+class StepFailure(Exception):
+    """An engine reported that a step failed or diverged (a typed divergence, as dm_control's
+    PhysicsError): the run driver records it as the run's failure at the time of the sample
+    being stepped to, never as a crash. Here, below the simulators and the adapters, so both
+    can raise it."""

@@ -254,7 +254,10 @@ def test_cost_stops_at_its_budget_and_says_so():
 
     cost = measure_cost(Slow, steps=10, dt=1e-3,
                         plan=CostPlan(min_repeats=50, min_seconds=0.0, budget_seconds=0.12))
-    assert len(cost.wall) == 3 and "budget" in cost.note
+    # It stops at the first repetition that brings the timed total to the budget, and says so
+    # (checked against the times it measured: a loaded machine sleeps longer).
+    assert sum(cost.wall[:-1]) < 0.12 <= sum(cost.wall) and len(cost.wall) < 50
+    assert "budget" in cost.note
 
 
 def test_a_step_failure_in_the_cost_pass_still_counts_its_time():

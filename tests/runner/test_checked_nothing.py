@@ -50,13 +50,14 @@ def test_one_runnable_cell_is_enough(tmp_path, capsys):
 
 
 def test_a_run_that_would_outlast_its_timeout_says_so_before_it_starts(tmp_path, capsys):
-    # 2e7 MuJoCo steps at ~1 us each take ~20 s; a 5 s timeout cannot hold them. The cell is a
+    # 2e8 MuJoCo steps at ~1 us each take ~200 s (still 60 s on a machine three times faster);
+    # a 5 s timeout cannot hold them. The cell is a
     # timeout with the prediction, said after timing the first 200 steps: the worker is not
     # left to run until it is killed at the deadline.
     case = tmp_path / "case.toml"
     case.write_text(ONLY_PYMUNK_3D.replace('engines = ["pymunk"]', 'engines = ["mujoco"]\n'
                                            'sample_every = 1.0\ntimeout = 5.0')
-                    .replace("duration = 0.1", "duration = 2000.0").replace("dt = 1e-3",
+                    .replace("duration = 0.1", "duration = 20000.0").replace("dt = 1e-3",
                                                                               "dt = 1e-4"))
     out = tmp_path / "out"
     status = main(["run", str(case), "--out", str(out), "--workers", "1", "--progress", "none",
@@ -64,5 +65,5 @@ def test_a_run_that_would_outlast_its_timeout_says_so_before_it_starts(tmp_path,
     assert status == 1
     (cell,) = json.loads((out / "results.json").read_text())["cells"]
     assert cell["status"] == "timeout"
-    assert "20000000 steps would take about" in cell["reason"]
+    assert "200000000 steps would take about" in cell["reason"]
     assert "not started" in cell["reason"]

@@ -226,3 +226,14 @@ def test_a_structure_that_collapses_or_gains_energy_is_unstable_for_the_frontier
     falling = cell(0.004, collapse=0.1)
     falling["metrics"]["rest_drift_max"].pop("limit")
     assert stability(falling) == "pass"
+
+
+@pytest.mark.parametrize("option", [["--target", "-1"], ["--max-dt", "-0.1"],
+                                    ["--frontier-width", "0"], ["--frontier-rounds", "-2"]])
+def test_sweep_refuses_a_meaningless_option_before_running(option, tmp_path, capsys):
+    from crosscheck.cli import main
+
+    case = Path(__file__).resolve().parents[2] / "cases" / "rigid3d" / "free_fall.toml"
+    assert main(["sweep", str(case), "--out", str(tmp_path / "s"), *option]) == 2
+    assert f"error: {option[0]}: expected" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()  # nothing ran

@@ -80,14 +80,9 @@ def _default_dts(scene) -> list[float]:
     dts = [scene.run.dt * f for f in (4, 2, 1, 0.5, 0.25, 0.125)]
     if scene.fluid is not None:
         return dts
-    duration = scene.run.duration
-    out = []
-    for dt in dts:
-        steps = max(1, round(duration / dt))
-        dt = dt if abs(steps * dt - duration) <= 1e-9 * duration else duration / steps
-        if dt not in out:
-            out.append(dt)
-    return out
+    from crosscheck.scene.model import dividing_step
+
+    return list(dict.fromkeys(dividing_step(scene.run.duration, dt) for dt in dts))
 
 
 def run(args) -> int:
@@ -159,6 +154,16 @@ def _run(args) -> tuple[int, dict]:
     from crosscheck.scene.loader import load_case
     from crosscheck.study import sweep
 
+    for flag, value, ok, expected in (
+            ("--target", args.target, lambda v: v is None or (v > 0 and math.isfinite(v)),
+             "a positive error"),
+            ("--max-dt", args.max_dt, lambda v: v is None or (v > 0 and math.isfinite(v)),
+             "a positive step in s"),
+            ("--frontier-width", args.frontier_width, lambda v: 0 < v < 1 and math.isfinite(v),
+             "a relative width between 0 and 1"),
+            ("--frontier-rounds", args.frontier_rounds, lambda v: v >= 0, "rounds >= 0")):
+        if not ok(value):
+            raise UsageError(f"{flag}: expected {expected}, got {value}")
     if not Path(args.case).is_file():
         raise UsageError(f"{args.case}: no such case file")
     refs = _engine_refs(args.engine_ref)

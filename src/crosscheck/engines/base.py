@@ -16,7 +16,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from crosscheck.engines.session import Session
-from crosscheck.scene.model import Scene
+from crosscheck.scene.model import Scene, whole_steps  # noqa: F401 - re-exported
 from crosscheck.state import Trajectory
 
 
@@ -161,14 +161,6 @@ class SamplingPlan:
 
 class TimeGridError(ValueError):
     """A step that does not divide the run's duration into a whole number of steps."""
-
-
-def whole_steps(duration: float, dt: float) -> int | None:
-    """duration / dt when it is a whole number (to 1e-9 relative), else None."""
-    n = round(duration / dt)
-    if n >= 1 and abs(n * dt - duration) <= 1e-9 * duration:
-        return int(n)
-    return None
 
 
 def sampling_plan(scene: Scene, dt: float) -> SamplingPlan:

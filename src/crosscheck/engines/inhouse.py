@@ -24,6 +24,7 @@ import numpy as np
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
 from crosscheck.names import fluid_names, rigid_names
+from crosscheck.rotations import quat_to_matrix
 from crosscheck.scene.model import Scene
 from crosscheck.sim.rigid import INTEGRATORS
 from crosscheck.sim.rigid.model import RigidState, state_from_scene
@@ -156,8 +157,6 @@ class InhouseSession:
         P = bodies.mass[:, None] * np.asarray(vel, float)
         if model.dimension == 3:
             q = np.array(rot, float)
-            from crosscheck.rotations import quat_to_matrix
-
             r = quat_to_matrix(q)
             inertia_world = np.einsum("nij,njk,nlk->nil", r, bodies.inertia, r)
             L = np.einsum("nij,nj->ni", inertia_world, np.asarray(omega, float))

@@ -23,11 +23,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-
-class StepFailure(Exception):
-    """The engine reported that a step failed or diverged (a typed divergence, as dm_control's
-    PhysicsError): the driver records it as the run's failure at the time of the sample being
-    stepped to, never as a crash."""
+from crosscheck.errors import StepFailure  # noqa: F401 - sessions raise it; re-exported
 
 
 @runtime_checkable

@@ -13,7 +13,8 @@ columns and those lines, so reports can cite where the numbers come from.
 
 A case names a data set by :data:`CASE_TABLES` (``reference.table``); the loader refuses any
 other name, and a cavity case whose Reynolds number is not one of the paper's
-(:func:`ghia_reynolds`). This module imports nothing of crosscheck, so the loader may use it.
+(:func:`ghia_reynolds`). Both live in :mod:`crosscheck.scene.published_table`, with the loader's
+checks (the scene must not import reference/), and are re-exported here.
 """
 
 from __future__ import annotations
@@ -24,28 +25,18 @@ from importlib import resources
 
 import numpy as np
 
-# The Reynolds numbers of Ghia et al.'s Tables I and II.
-GHIA_REYNOLDS = (100, 400, 1000, 3200, 5000, 7500, 10000)
-# A case's Reynolds number U L / nu matches a table's to this relative tolerance: the case's
-# numbers are exact inputs (1 / 0.01 = 100 up to round-off), so only round-off is forgiven.
-REYNOLDS_RTOL = 1e-6
+# The catalogue a case may name lives with the loader's checks, below this module.
+from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
+    CASE_TABLES,
+    GHIA_REYNOLDS,
+    REYNOLDS_RTOL,
+    ghia_reynolds,
+)
 
 TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
     TABLES[f"ghia_1982_re{_re}_v"] = f"ghia1982_re{_re}_v_horizontal_centreline.csv"
-
-# What ``reference.table`` may name, and what it needs. "ghia_1982" picks the Reynolds number
-# from the case; "ghia_1982_re<Re>" insists on one (the case must be at that Re).
-CASE_TABLES = {
-    "martin_moyce_1952": "surge front of a collapsing water column (a fluid case with gravity "
-                         "and a free surface)",
-    "ghia_1982": "centreline velocities of the lid-driven cavity at the case's Reynolds number "
-                 f"({', '.join(map(str, GHIA_REYNOLDS))})",
-}
-CASE_TABLES.update({f"ghia_1982_re{_re}": f"lid-driven cavity centrelines at Re = {_re}"
-                    for _re in GHIA_REYNOLDS})
-
 
 @dataclass(frozen=True)
 class Table:
@@ -76,18 +67,6 @@ def load_table(name: str) -> Table:
             rows.append([float(v) for v in line.split(",")])
     data = np.array(rows)
     return Table(name, {h: data[:, i] for i, h in enumerate(header)}, tuple(source))
-
-
-def ghia_reynolds(reynolds: float, table: str = "ghia_1982") -> int:
-    """The Reynolds number of Ghia et al.'s tables that ``reynolds`` is (to REYNOLDS_RTOL) and that
-    the case's ``table`` name allows; ValueError naming the Re found and those available."""
-    wanted = GHIA_REYNOLDS if table == "ghia_1982" else (int(table.rsplit("re", 1)[1]),)
-    for re in wanted:
-        if abs(reynolds - re) <= REYNOLDS_RTOL * re:
-            return re
-    raise ValueError(f"the case's Reynolds number U L / nu = {reynolds:.10g} matches no table "
-                     f"of {table!r} (available: Re = {', '.join(map(str, wanted))}, to a "
-                     f"relative {REYNOLDS_RTOL:g})")
 
 
 def sloshing_period(width: float, depth: float, g: float, mode: int = 1) -> float:

@@ -42,6 +42,8 @@ from crosscheck.scene.model import (
     Spring,
     Static,
     Tolerance,
+    dividing_step,
+    whole_steps,
 )
 from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
 
@@ -181,11 +183,10 @@ def _run(f: Fields, unchecked: frozenset[str], fluid: bool = False) -> RunSettin
     # A rigid run takes exactly duration / dt steps (a fluid's adaptive steps land on the
     # duration by themselves): a step that does not divide it would end the run early.
     if not fluid:
-        steps = round(duration / dt)
-        if steps < 1 or abs(steps * dt - duration) > 1e-9 * duration:
+        if whole_steps(duration, dt) is None:
             raise f.error("dt", f"a step that divides run.duration ({duration} s) into a whole "
                                 f"number of steps (here {duration / dt:.6g}; e.g. "
-                                f"{duration / max(steps, 1):.6g})", dt)
+                                f"{dividing_step(duration, dt):.6g})", dt)
     sample_every = f.number("sample_every", dt, positive=True, unit="s")
     if sample_every > duration:
         raise f.error("sample_every", f"an interval no longer than run.duration ({duration} s)",

@@ -212,6 +212,20 @@ class PairOverride:
 
 
 # -- run, reference, tolerances -------------------------------------------------------------------
+def whole_steps(duration: float, dt: float) -> int | None:
+    """duration / dt when it is a whole number (to 1e-9 relative), else None: a rigid run takes
+    exactly this many steps, so a step that does not divide the duration is refused."""
+    n = round(duration / dt)
+    if n >= 1 and abs(n * dt - duration) <= 1e-9 * duration:
+        return int(n)
+    return None
+
+
+def dividing_step(duration: float, dt: float) -> float:
+    """``dt`` if it divides ``duration``, else the nearest step that does."""
+    return dt if whole_steps(duration, dt) is not None else duration / max(1, round(duration / dt))
+
+
 @dataclass(frozen=True)
 class RunSettings:
     duration: float  # s

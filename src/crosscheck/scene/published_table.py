@@ -4,16 +4,46 @@ A table the comparer does not know, or one that does not describe the case, woul
 with no reference metric at all, which used to pass. So the loader refuses: an unknown name
 (listing the known ones), a table on a case it cannot apply to (a rigid case naming a fluid
 table, a dam break without a free surface), and a lid-driven cavity whose Reynolds number is
-none of Ghia et al.'s. The catalogue lives in :mod:`crosscheck.reference.fluid_data`, a module
-that imports nothing of crosscheck (so this import does not point up).
+none of Ghia et al.'s. The catalogue of names lives here, below reference/ (whose
+``fluid_data`` loads the data and re-exports the catalogue), so the loader imports nothing above
+the scene.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from crosscheck.reference.fluid_data import CASE_TABLES, ghia_reynolds
 from crosscheck.scene.fields import Fields
+
+# The Reynolds numbers of Ghia et al.'s Tables I and II.
+GHIA_REYNOLDS = (100, 400, 1000, 3200, 5000, 7500, 10000)
+# A case's Reynolds number U L / nu matches a table's to this relative tolerance: the case's
+# numbers are exact inputs (1 / 0.01 = 100 up to round-off), so only round-off is forgiven.
+REYNOLDS_RTOL = 1e-6
+
+# What ``reference.table`` may name, and what it needs. "ghia_1982" picks the Reynolds number
+# from the case; "ghia_1982_re<Re>" insists on one (the case must be at that Re).
+CASE_TABLES = {
+    "martin_moyce_1952": "surge front of a collapsing water column (a fluid case with gravity "
+                         "and a free surface)",
+    "ghia_1982": "centreline velocities of the lid-driven cavity at the case's Reynolds number "
+                 f"({', '.join(map(str, GHIA_REYNOLDS))})",
+}
+CASE_TABLES.update({f"ghia_1982_re{_re}": f"lid-driven cavity centrelines at Re = {_re}"
+                    for _re in GHIA_REYNOLDS})
+
+
+def ghia_reynolds(reynolds: float, table: str = "ghia_1982") -> int:
+    """The Reynolds number of Ghia et al.'s tables that ``reynolds`` is (to REYNOLDS_RTOL) and that
+    the case's ``table`` name allows; ValueError naming the Re found and those available."""
+    wanted = GHIA_REYNOLDS if table == "ghia_1982" else (int(table.rsplit("re", 1)[1]),)
+    for re in wanted:
+        if abs(reynolds - re) <= REYNOLDS_RTOL * re:
+            return re
+    raise ValueError(f"the case's Reynolds number U L / nu = {reynolds:.10g} matches no table "
+                     f"of {table!r} (available: Re = {', '.join(map(str, wanted))}, to a "
+                     f"relative {REYNOLDS_RTOL:g})")
+
 
 # Relative difference allowed between the sides of a "square" cavity (exact inputs: round-off).
 SQUARE_RTOL = 1e-9

@@ -21,6 +21,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from crosscheck.errors import StepFailure
 from crosscheck.sim.fluid.record import FluidRecord
 from crosscheck.sim.fluid.solver import (
     DEFAULT_INTEGRATOR,
@@ -127,8 +128,6 @@ class FluidRun:
 
     def advance(self, n: int) -> None:
         """n steps, no recording (the cost pass). Stops at the end of the run."""
-        from crosscheck.engines.session import StepFailure
-
         with _threads():
             for _ in range(n):
                 if self.done:
