@@ -54,15 +54,16 @@ def _i(name: str, order: int, scheme: str, symplectic: bool, contact: bool = Fal
 
 RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
     # crosscheck.sim.rigid (docs/inhouse.md, "Integrators"). 2D: every scheme is symplectic
-    # or not as in 3D except symplectic_euler_exp, which is symplectic_euler there.
+    # or not as in 3D except symplectic_euler_exp, which is symplectic_euler there. ``contact``:
+    # the integrator pairs with at least one contact model (CONTACT_MODELS below).
     "inhouse": (
-        _i("rk4", 4, EXACT, False),
-        _i("rk4_exp", 4, EXACT, False),
-        _i("explicit_euler", 1, POSITION_FIRST, False),
-        _i("midpoint", 2, EXACT, False),
-        _i("symplectic_euler", 1, VELOCITY_FIRST, True),
-        _i("symplectic_euler_exp", 1, VELOCITY_FIRST, False),
-        _i("verlet", 2, EXACT, True),
+        _i("rk4", 4, EXACT, False, contact=True),
+        _i("rk4_exp", 4, EXACT, False, contact=True),
+        _i("explicit_euler", 1, POSITION_FIRST, False, contact=True),
+        _i("midpoint", 2, EXACT, False, contact=True),
+        _i("symplectic_euler", 1, VELOCITY_FIRST, True, contact=True),
+        _i("symplectic_euler_exp", 1, VELOCITY_FIRST, False, contact=True),
+        _i("verlet", 2, EXACT, True, contact=True),
         _i("implicit_euler", 1, VELOCITY_FIRST, False),
     ),
     # MuJoCo, its default (Euler) first: every single-step integrator updates the velocity first
@@ -122,8 +123,100 @@ def integrator_info(engine: str, name: str) -> IntegratorInfo:
                    f"{list(rigid_names(engine))}")
 
 
+# -- contact models (in-house) -------------------------------------------------------------------
+# The in-house engine runs a contact scene with an integrator AND a contact model: the run's name
+# is "integrator+model" (e.g. "symplectic_euler+soft_step"), everywhere a name appears (case
+# files, --integrators, cell ids, reports). A bare integrator name on a contact scene means that
+# integrator with the first model below that pairs with it (resolve_run); the peer engines have
+# one contact model each (their own) and never take a "+model".
+SEPARATOR = "+"
+VELOCITY_LEVEL = "velocity"  # impulses on the velocities inside each step (kick, solve, drift)
+FORCE_LEVEL = "force"  # a contact force in every force evaluation, any explicit integrator
+EVENT_DRIVEN = "event"  # impulses at the instants of impact, LCP contact forces at rest
+
+_SPLITTING = ("symplectic_euler", "symplectic_euler_exp")
+_EXPLICIT = ("rk4", "rk4_exp", "midpoint", "explicit_euler", "verlet", "symplectic_euler",
+             "symplectic_euler_exp")
+
+
+class ContactModelInfo(NamedTuple):
+    name: str
+    level: str  # VELOCITY_LEVEL | FORCE_LEVEL | EVENT_DRIVEN
+    integrators: tuple[str, ...]  # the in-house integrators it pairs with
+    summary: str
+
+
+CONTACT_MODELS: dict[str, tuple[ContactModelInfo, ...]] = {
+    # docs/inhouse.md, "Contact": the pipeline, each model's formulation and parameters.
+    "inhouse": (
+        ContactModelInfo("soft_step", VELOCITY_LEVEL, _SPLITTING,
+                         "sub-stepped soft constraints with relaxation (Box2D v3)"),
+        ContactModelInfo("sequential_impulse", VELOCITY_LEVEL, _SPLITTING,
+                         "projected Gauss-Seidel on velocities with warm starting, restitution "
+                         "above a velocity threshold, split-impulse position correction"),
+        ContactModelInfo("penalty", FORCE_LEVEL, _EXPLICIT,
+                         "Hunt-Crossley spring-damper normal force and regularised Coulomb "
+                         "friction in every force evaluation"),
+        ContactModelInfo("impulse_lcp", EVENT_DRIVEN, _EXPLICIT,
+                         "Baraff: impulses with restitution at the time of impact (bisection), "
+                         "resting forces from the LCP with Coulomb friction"),
+    ),
+}
+
+
+def contact_model_names(engine: str) -> tuple[str, ...]:
+    return tuple(m.name for m in CONTACT_MODELS.get(engine, ()))
+
+
+def contact_model_info(engine: str, name: str) -> ContactModelInfo:
+    for info in CONTACT_MODELS.get(engine, ()):
+        if info.name == name:
+            return info
+    raise KeyError(f"{engine} has no contact model {name!r}; known: "
+                   f"{list(contact_model_names(engine))}")
+
+
+def contact_run_names(engine: str) -> tuple[str, ...]:
+    """Every "integrator+model" an engine accepts, model by model."""
+    return tuple(f"{i}{SEPARATOR}{m.name}" for m in CONTACT_MODELS.get(engine, ())
+                 for i in m.integrators)
+
+
+def split_run(name: str) -> tuple[str, str | None]:
+    """("integrator", "model") of a run name; the model is None for a bare integrator."""
+    integrator, sep, model = name.partition(SEPARATOR)
+    return integrator, (model if sep else None)
+
+
+def default_model(engine: str, integrator: str) -> str | None:
+    """The first contact model that pairs with the integrator, or None."""
+    for info in CONTACT_MODELS.get(engine, ()):
+        if integrator in info.integrators:
+            return info.name
+    return None
+
+
+def resolve_run(engine: str, name: str, contact: bool) -> str:
+    """The run name a cell carries: on a contact scene, an in-house bare integrator becomes
+    "integrator+its default model" so reports always show both; otherwise unchanged."""
+    integrator, model = split_run(name)
+    if contact and model is None:
+        chosen = default_model(engine, integrator)
+        if chosen is not None:
+            return f"{integrator}{SEPARATOR}{chosen}"
+    return name
+
+
+def default_contact_run(engine: str) -> str | None:
+    """What an engine runs on a contact scene when nothing is asked: the first contact model
+    with its first partner integrator (None for an engine without contact models)."""
+    models = CONTACT_MODELS.get(engine, ())
+    return f"{models[0].integrators[0]}{SEPARATOR}{models[0].name}" if models else None
+
+
 INTEGRATOR_NAMES: dict[str, tuple[str, ...]] = {
-    engine: rigid_names(engine) + fluid_names(engine) for engine in ENGINES}
+    engine: rigid_names(engine) + contact_run_names(engine) + fluid_names(engine)
+    for engine in ENGINES}
 
 
 def all_integrator_names() -> tuple[str, ...]:
@@ -134,4 +227,7 @@ def all_integrator_names() -> tuple[str, ...]:
 for _engine, _infos in RIGID.items():  # a name is one thing per engine
     _names = [i.name for i in _infos] + list(FLUID.get(_engine, ()))
     assert len(set(_names)) == len(_names), (_engine, _names)
+    assert not any(SEPARATOR in n for n in _names), (_engine, _names)
+    for _model in CONTACT_MODELS.get(_engine, ()):  # a model pairs with integrators that exist
+        assert set(_model.integrators) <= set(_names), (_engine, _model)
 del _engine, _infos, _names

@@ -68,7 +68,7 @@ def test_names_imports_nothing_heavy():
     assert proc.stdout.strip() == "['crosscheck.names']"
 
 
-def test_inhouse_is_the_rigid_registry_then_the_fluid_schemes():
+def test_inhouse_is_the_rigid_registry_then_the_contact_runs_then_the_fluid_schemes():
     # The in-house adapter lists the fluid schemes only when crosscheck.sim.fluid imports, so the
     # adapter test above alone would not catch a fluid scheme missing from the list.
     from crosscheck.sim import fluid, rigid
@@ -77,7 +77,8 @@ def test_inhouse_is_the_rigid_registry_then_the_fluid_schemes():
     fluid_names = tuple(fluid.INTEGRATORS)
     assert rigid_names == names.rigid_names("inhouse")
     assert fluid_names == names.fluid_names("inhouse")
-    assert INTEGRATOR_NAMES["inhouse"] == rigid_names + fluid_names
+    assert INTEGRATOR_NAMES["inhouse"] == (rigid_names + names.contact_run_names("inhouse")
+                                           + fluid_names)
     assert rigid_names[0] == rigid.DEFAULT
 
 
@@ -166,6 +167,32 @@ def test_the_contact_flags_agree_with_what_each_adapter_can_simulate():
     from crosscheck.engines import get_engine
     from crosscheck.names import RIGID
 
+    from crosscheck.sim.rigid.contact_models import CONTACT_KERNELS
+
     for engine, infos in RIGID.items():
         maps_contact = "contact" in get_engine(engine).capabilities().effects
-        assert all(info.contact == maps_contact for info in infos), (engine, maps_contact)
+        if engine in names.CONTACT_MODELS:
+            # The in-house engine maps contact once a model is implemented; an integrator's flag
+            # says it pairs with some model.
+            assert maps_contact == bool(CONTACT_KERNELS)
+            paired = {i for m in names.CONTACT_MODELS[engine] for i in m.integrators}
+            assert all(info.contact == (info.name in paired) for info in infos), engine
+        else:
+            assert all(info.contact == maps_contact for info in infos), (engine, maps_contact)
+
+
+def test_contact_run_names_resolve_to_integrator_and_model():
+    assert names.split_run("rk4+penalty") == ("rk4", "penalty")
+    assert names.split_run("rk4") == ("rk4", None)
+    # A bare in-house integrator on a contact scene carries its first pairing model, so a report
+    # always names both; contact-free scenes and the peers keep the bare name.
+    assert names.resolve_run("inhouse", "rk4", contact=True) == "rk4+penalty"
+    assert names.resolve_run("inhouse", "symplectic_euler", contact=True) == \
+        "symplectic_euler+soft_step"
+    assert names.resolve_run("inhouse", "rk4", contact=False) == "rk4"
+    assert names.resolve_run("mujoco", "euler", contact=True) == "euler"
+    assert names.resolve_run("inhouse", "implicit_euler", contact=True) == "implicit_euler"
+    for run in names.contact_run_names("inhouse"):
+        integrator, model = names.split_run(run)
+        assert integrator in names.contact_model_info("inhouse", model).integrators
+        assert names.integrator_info("inhouse", integrator).contact

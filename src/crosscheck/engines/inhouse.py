@@ -23,7 +23,13 @@ import numpy as np
 
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
-from crosscheck.names import fluid_names, rigid_names
+from crosscheck.names import (
+    contact_model_info,
+    contact_run_names,
+    fluid_names,
+    rigid_names,
+    split_run,
+)
 from crosscheck.rotations import quat_to_matrix
 from crosscheck.scene.model import Scene
 from crosscheck.sim.rigid import INTEGRATORS
@@ -52,6 +58,22 @@ def _fluid_integrators() -> tuple[str, ...]:
     return () if module is None else fluid_names("inhouse")
 
 
+def _contact_reason(integrator: str, model: str) -> str | None:
+    """Why the in-house engine cannot run ``integrator+model`` on a contact scene, or None."""
+    from crosscheck.sim.rigid.contact_models import CONTACT_KERNELS
+
+    try:
+        info = contact_model_info("inhouse", model)
+    except KeyError as exc:
+        return str(exc.args[0])
+    if integrator not in info.integrators:
+        return (f"contact model {model!r} does not pair with {integrator!r} (it pairs with "
+                f"{list(info.integrators)})")
+    if model not in CONTACT_KERNELS:
+        return f"the in-house contact model {model!r} is not implemented yet"
+    return None
+
+
 class InhouseEngine(EngineBase):
     name = "inhouse"
 
@@ -63,8 +85,14 @@ class InhouseEngine(EngineBase):
         effects = set(RIGID_EFFECTS)
         if _fluid_module()[0] is not None:
             effects.add("fluid")
+        from crosscheck.sim.rigid.contact_models import CONTACT_KERNELS
+
+        if CONTACT_KERNELS:
+            effects.add("contact")
+        contact_runs = contact_run_names("inhouse")
         return Capabilities(dimensions=frozenset({2, 3}), shapes=SHAPES,
-                            effects=frozenset(effects), integrators=rigid + fluid, notes=notes)
+                            effects=frozenset(effects), integrators=rigid + contact_runs + fluid,
+                            notes=notes)
 
     def version(self) -> str:
         import numba
@@ -83,11 +111,20 @@ class InhouseEngine(EngineBase):
                 return (f"{integrator!r} is not a fluid integrator "
                         f"(fluid integrators: {list(names)})")
             return None
-        if integrator not in INTEGRATORS:
-            return (f"inhouse has no rigid-body integrator {integrator!r} "
+        base, model = split_run(integrator)
+        if base not in INTEGRATORS:
+            return (f"inhouse has no rigid-body integrator {base!r} "
                     f"(it has {list(INTEGRATORS)})")
-        if scene.effects.contact and not INTEGRATORS[integrator].contact:
-            return "the in-house rigid simulator has no contact yet"
+        if model is not None:
+            if not scene.effects.contact:
+                return f"contact model {model!r} named on a scene without contact"
+            reason = _contact_reason(base, model)
+            if reason:
+                return reason
+            return super().not_applicable(scene, base)
+        if scene.effects.contact:
+            return (f"{base!r} pairs with no in-house contact model "
+                    f"(crosscheck.names.CONTACT_MODELS)")
         return super().not_applicable(scene, integrator)
 
     def check_options(self, scene: Scene) -> None:
@@ -126,8 +163,17 @@ class InhouseSession:
     def __init__(self, scene: Scene, integrator: str, dt: float):
         self.scene = scene
         self.dt = float(dt)
-        self.sim = RigidSimulation.from_scene(scene, integrator)
+        base, model = split_run(integrator)
+        self.sim = RigidSimulation.from_scene(scene, base)
         self.state = state_from_scene(self.sim.model, scene)
+        # A contact scene steps through its contact model's stepper (sim/rigid/contact_models.py);
+        # a contact-free one through the integrator's kernels alone.
+        self.contact = None
+        if model is not None:
+            from crosscheck.sim.rigid.contact_models import get_contact_model
+
+            self.contact = get_contact_model(model).open(scene, self.sim.model,
+                                                         self.sim.integrator, {})
         n, d = self.sim.model.n_bodies, self.sim.model.dimension
         r, w = (4, 3) if d == 3 else (1, 1)
         # Row layout: com (N d), orientation (N r), velocity (N d), angular velocity (N w).
@@ -137,7 +183,10 @@ class InhouseSession:
 
     def advance(self, n: int) -> None:
         try:
-            self.sim.advance(self.state, n, self.dt)
+            if self.contact is not None:
+                self.contact.advance(self.state, n, self.dt)
+            else:
+                self.sim.advance(self.state, n, self.dt)
         except (ArithmeticError, np.linalg.LinAlgError, ValueError) as exc:
             raise StepFailure(f"step failed: {type(exc).__name__}: {exc}") from exc
 
@@ -174,7 +223,8 @@ class InhouseSession:
                     effects_simulated=list(self.sim.model.effects),
                     gravity=None if scene.effects.gravity is None
                     else list(map(float, scene.effects.gravity)),
-                    damping="only the declared drag and spring damping", contact=False)
+                    damping="only the declared drag and spring damping",
+                    contact=False if self.contact is None else self.contact.describe())
 
     def close(self) -> None:
         pass

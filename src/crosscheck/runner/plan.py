@@ -99,6 +99,17 @@ def check_integrators(requested: list[str] | None, engine_refs: dict[str, str] |
 
 def _integrators_for(scene, engine_name: str, requested: list[str] | None,
                      engine_refs: dict[str, str] | None) -> list[str]:
+    """The run names of one case on one engine; on a contact scene an in-house bare integrator
+    carries its contact model ("rk4" -> "rk4+penalty", crosscheck.names.resolve_run)."""
+    from crosscheck.names import resolve_run
+
+    contact = bool(scene.effects.contact) and engine_name not in (engine_refs or {})
+    return list(dict.fromkeys(resolve_run(engine_name, name, contact) for name in
+                              _names_for(scene, engine_name, requested, engine_refs)))
+
+
+def _names_for(scene, engine_name: str, requested: list[str] | None,
+               engine_refs: dict[str, str] | None) -> list[str]:
     if requested:
         own = [r.split(".", 1)[1] for r in requested if r.startswith(engine_name + ".")]
         general = [r for r in requested if "." not in r]
@@ -109,6 +120,11 @@ def _integrators_for(scene, engine_name: str, requested: list[str] | None,
     listed = list(scene.integrators_for(engine_name))
     if listed:
         return listed
+    from crosscheck.names import default_contact_run
+
+    if (scene.effects.contact and default_contact_run(engine_name)
+            and engine_name not in (engine_refs or {})):
+        return [default_contact_run(engine_name)]
     try:
         return [resolve_engine(engine_name, engine_refs).capabilities().default_integrator]
     except Exception:

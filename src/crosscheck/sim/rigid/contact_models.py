@@ -1,0 +1,69 @@
+"""The in-house contact models' implementations, bound to the names of crosscheck.names.
+
+``crosscheck.names.CONTACT_MODELS`` lists each model's name, level (velocity, force, event), the
+integrators it pairs with and a one-line summary; this registry binds a name to its
+implementation, as sim/rigid/integrators.py binds integrator names to kernels. A model is
+implemented by an ``open`` function::
+
+    open(scene, model: RigidModel, integrator: Integrator, parameters: dict) -> ContactStepper
+
+and the stepper advances the Baraff state with contact in place::
+
+    stepper.advance(state: RigidState, n_steps: int, h: float) -> None
+    stepper.describe() -> dict        # the model's effective settings (meta["effective"])
+    stepper.contacts                  # the sim.collide.Contacts buffer of the last detection
+
+A stepper raises ValueError (an overflowing contact buffer, a solver that cannot proceed), which
+the adapter turns into the run's StepFailure. docs/inhouse.md, "Contact", describes the pipeline
+(detect -> solve -> integrate) and every model's formulation and parameters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from crosscheck.names import ContactModelInfo, contact_model_info
+
+
+class ContactStepper(Protocol):
+    contacts: Any
+
+    def advance(self, state, n_steps: int, h: float) -> None: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class ContactModel:
+    info: ContactModelInfo
+    # name -> (default value, "meaning, unit"): what [engine_options.inhouse] may set
+    parameters: dict[str, tuple[Any, str]] = field(default_factory=dict)
+    open: Callable[..., ContactStepper] | None = None
+
+    @property
+    def name(self) -> str:
+        return self.info.name
+
+
+CONTACT_KERNELS: dict[str, ContactModel] = {}
+
+
+def bind_contact_model(name: str, open: Callable[..., ContactStepper],
+                       parameters: dict[str, tuple[Any, str]] | None = None) -> ContactModel:
+    """Register the implementation of the crosscheck.names contact model ``name``."""
+    info = contact_model_info("inhouse", name)  # KeyError for a name crosscheck.names lacks
+    if name in CONTACT_KERNELS:
+        raise ValueError(f"contact model {name!r} is already registered")
+    bound = ContactModel(info, dict(parameters or {}), open)
+    CONTACT_KERNELS[name] = bound
+    return bound
+
+
+def get_contact_model(name: str) -> ContactModel:
+    try:
+        return CONTACT_KERNELS[name]
+    except KeyError:
+        raise KeyError(f"the in-house contact model {name!r} is not implemented; implemented: "
+                       f"{list(CONTACT_KERNELS)}") from None
