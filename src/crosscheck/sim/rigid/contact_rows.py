@@ -531,12 +531,16 @@ def current_separation(rows, c, a, b, dp, dR):
 
 # -- the passes -----------------------------------------------------------------------------------
 @njit(**JIT)
-def impulse_bias(contacts, rows, count, h, threshold):
-    """sequential_impulse's normal-row bias (target vn >= -bias), from the pre-solve normal
-    velocity vn0 and the separation s at detection:
+def impulse_bias(contacts, rows, count, h, threshold, v, w):
+    """sequential_impulse's normal-row bias (target vn >= -bias), from the normal velocity vn0
+    before this step's kick (``rows.relative_velocity``), the kicked one vn1 (v, w) and the
+    separation s at detection:
 
-    * restitution, -e vn0, when the pair has e > 0, the approach is faster than the threshold
-      and the contact closes within the step (s + vn0 h <= 0);
+    * restitution, -e vn0, when the pair has e > 0, the approach was faster than the threshold
+      and the contact closes within the step (s + vn1 h <= 0). The velocity *before* the kick is
+      the one reflected: then the positions after the bounce mirror those before it step for
+      step (v_(k+1) = -v_k), so a bounce with e = 1 keeps its apex exactly; reflecting the kicked
+      velocity gains g dt v (0.9 % of the apex per bounce at 4.4 m/s and 1 ms, measured);
     * otherwise the speculative allowance s / h for a gap (vn may approach to close it exactly);
     * otherwise 0 (a touching or penetrating row stops the approach; the penetration itself is
       removed by the split impulse, never through the velocity)."""
@@ -544,12 +548,13 @@ def impulse_bias(contacts, rows, count, h, threshold):
         s = rows.separation[c]
         vn0 = rows.relative_velocity[c]
         e = contacts.restitution[c]
-        if e > 0.0 and vn0 < -threshold and s + vn0 * h <= 0.0:
-            rows.bias[c] = e * vn0
-        elif s > 0.0:
-            rows.bias[c] = s / h
-        else:
-            rows.bias[c] = 0.0
+        if e > 0.0 and vn0 < -threshold:
+            dx, dy, dz = relative_velocity(rows, c, contacts.a[c], contacts.b[c], v, w)
+            vn1 = dx * rows.n[c, 0] + dy * rows.n[c, 1] + dz * rows.n[c, 2]
+            if s + vn1 * h <= 0.0:
+                rows.bias[c] = e * vn0
+                continue
+        rows.bias[c] = s / h if s > 0.0 else 0.0
 
 
 @njit(**JIT)
