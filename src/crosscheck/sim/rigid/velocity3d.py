@@ -35,7 +35,12 @@ from crosscheck.sim.rigid.contact_rows import (
     store_rows,
 )
 from crosscheck.sim.rigid.forces3d import evaluate, kinematics
-from crosscheck.sim.rigid.math3d import normalize_quat, normalize_quats, quat_to_rotation, rotate_left
+from crosscheck.sim.rigid.math3d import (
+    normalize_quat,
+    normalize_quats,
+    quat_to_rotation,
+    rotate_left,
+)
 from crosscheck.sim.rigid.splitting3d import drift_com, free_rotation, kick
 
 
