@@ -579,11 +579,17 @@ def row_sweep(contacts, rows, count, v, w, inv_mass, inv_inertia, soft, dp, dR, 
         else:
             bias, mass_scale, impulse_scale = biases[c], 1.0, 0.0
         acc = load6(imp, c)
+        if soft and total[c] == 0.0:
+            # the normal velocity just before the row's first impulse of the step: soft_step's
+            # restitution reflects it (see restitution_pass)
+            vn_touch = dot(relative_velocity(va, wa, vb, wb, ra, rb), n)
         new, ch, va, wa, vb, wb = solve_row(
             dim3, n, load3(rt1, c), load3(rt2, c), ra, rb, va, wa, vb, wb, ma, ia, mb, ib, acc,
             nmass[c], tmass[c, 0], rmass[c, 0], wmass[c], fr[c], rf[c],
             tf[c] if dim3 else 0.0, bias, mass_scale, impulse_scale)
         store6(imp, c, new)
+        if soft and total[c] == 0.0 and new[0] > 0.0:
+            rows.relative_velocity[c] = vn_touch
         total[c] += new[0] - acc[0]
         change = max(change, ch)
         store_body(v, w, a, va, wa)
@@ -708,7 +714,14 @@ def soft_sweep(contacts, rows, count, v, w, inv_mass, inv_inertia, dp, dR, inv_h
 @njit(**JIT)
 def restitution_pass(contacts, rows, count, v, w, inv_mass, inv_inertia, threshold):
     """soft_step's restitution (Box2D v3, after the sub-steps): a row that approached faster
-    than the threshold when prepared and took a normal impulse this step is driven to
-    vn = -e vn0 (the accumulated impulse kept >= 0)."""
+    than the threshold and took a normal impulse this step is driven to vn = -e vn0 (the
+    accumulated impulse kept >= 0).
+
+    vn0 is the normal velocity just before the row's first impulse of the step (``row_sweep``),
+    the approach speed at touch to within a sub-step; a row warm started with an impulse keeps
+    the velocity of the step's start. Box2D v3 reflects the velocity of the step's start always:
+    a ball that meets the ground s0 below its start-of-step height then leaves the surface with
+    the speed it had s0 higher, losing g s0 of energy per bounce (s0 up to v dt): measured an
+    apex 0.73 % low after two bounces of the 1 m drop, against 1e-5 this way."""
     normal_sweep(contacts, rows, count, v, w, inv_mass, inv_inertia, rows.impulse, False,
                  threshold)

@@ -161,7 +161,9 @@ def step3d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
     if st.model == SOFT_STEP:
         k = st.substeps
         hs = h / k
-        hertz = min(st.contact_hertz, 0.25 / hs)
+        hertz = 0.25 / hs  # Box2D v3's cap, a quarter of the sub-step rate
+        if st.contact_hertz > 0.0:
+            hertz = min(st.contact_hertz, hertz)
         contact_soft = soft_coefficients(hertz, st.damping_ratio, hs)
         static_soft = soft_coefficients(2.0 * hertz, st.damping_ratio, hs)
         if count > 0:

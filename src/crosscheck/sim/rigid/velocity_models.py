@@ -54,8 +54,11 @@ SOFT_STEP_PARAMETERS: dict[str, tuple[Any, str]] = {
     "substeps": (4, "sub-steps per step (Box2D v3's default)"),
     "iterations": (1, "biased sweeps per sub-step (Box2D v3: 1)"),
     "relax_iterations": (1, "sweeps without bias after each sub-step's drift (Box2D v3: 1)"),
-    "contact_hertz": (30.0, "Hz: contact stiffness as a natural frequency, capped at a quarter "
-                      "of the sub-step rate; static contacts twice (Box2D v3)"),
+    "contact_hertz": (0.0, "Hz: contact stiffness as a natural frequency (static contacts "
+                      "twice), capped at a quarter of the sub-step rate as in Box2D v3; 0: the "
+                      "cap, 1000 Hz at dt = 1 ms with 4 sub-steps. Box2D's 30 Hz suits its 60 Hz "
+                      "game steps; here it sinks a resting ball 69 um and a 100 kg box 29 mm "
+                      "into the 1 kg box under it (measured)"),
     "damping_ratio": (10.0, "damping ratio of the soft contact (Box2D v3: 10, overdamped)"),
     "push_speed": (3.0, "m/s: the fastest push out of an overlap (Box2D v3's contact speed)"),
     **_COMMON,
@@ -122,9 +125,11 @@ class VelocityStepper:
             contact_hertz=float(p["contact_hertz"]) if soft else 0.0,
             damping_ratio=float(p["damping_ratio"]) if soft else 0.0,
             push_speed=float(p["push_speed"]) if soft else 0.0)
+        self.h: float | None = None
         self._kernel = velocity3d.advance3d if model.dimension == 3 else velocity2d.advance2d
 
     def advance(self, state, n_steps: int, h: float) -> None:
+        self.h = float(h)
         n = int(n_steps)
         done = self._kernel(*self.model.kernel_args(), None, self.geometry, self.contacts,
                             self.rows, self.settings, *state.arrays(), n, float(h))
@@ -141,6 +146,11 @@ class VelocityStepper:
                "friction_cone": "isotropic (Coulomb disc per contact point)",
                "rotation_update": self.integrator.rotation}
         if self.name == "soft_step":
+            if self.h is not None:
+                cap = 0.25 * self.settings.substeps / self.h
+                hz = self.settings.contact_hertz
+                out["contact_hertz_effective"] = min(hz, cap) if hz > 0 else cap
+                out["static_contact_hertz_effective"] = 2 * out["contact_hertz_effective"]
             out["formulation"] = (
                 "Box2D v3 soft step: per step detect once, then per sub-step kick, warm start, "
                 "soft biased sweeps, drift, relax sweeps; restitution after the sub-steps")
