@@ -53,6 +53,7 @@ SEQUENTIAL_IMPULSE = 0
 SOFT_STEP = 1
 ROTATION_SPLITTING = 0  # symplectic_euler: exact principal-axis sub-rotations with L
 ROTATION_EXP = 1  # symplectic_euler_exp: q <- exp(h w) q
+MATCH_DISTANCE = 2e-3  # m: warm start by nearest anchor when a feature key is not found
 
 
 class Settings(NamedTuple):
@@ -93,8 +94,9 @@ class ContactRows(NamedTuple):
     impulse: np.ndarray  # (C, 6) accumulated impulses
     pseudo: np.ndarray  # (C, 1) split-impulse accumulators (sequential_impulse)
     prev_feature: np.ndarray  # (C,) int64: last step's keys, sorted
-    prev_impulse: np.ndarray  # (C, 6): last step's impulses, in prev_feature's order
+    prev_impulse: np.ndarray  # (C, 9): last step's impulses and anchors ra, in prev_feature's order
     prev_count: np.ndarray  # (1,) int64
+    stats: np.ndarray  # (3,) int64: steps with contacts, velocity sweeps, largest sweeps in a step
 
 
 def make_rows(capacity: int) -> ContactRows:
@@ -105,8 +107,8 @@ def make_rows(capacity: int) -> ContactRows:
                        normal_mass=z1(), tangent_inv=z3(), rolling_inv=z3(), twist_mass=z1(),
                        relative_velocity=z1(), bias=z1(), total_normal=z1(),
                        impulse=np.zeros((c, N_ACC)), pseudo=np.zeros((c, 1)),
-                       prev_feature=np.zeros(c, np.int64), prev_impulse=np.zeros((c, N_ACC)),
-                       prev_count=np.zeros(1, np.int64))
+                       prev_feature=np.zeros(c, np.int64), prev_impulse=np.zeros((c, N_ACC + 3)),
+                       prev_count=np.zeros(1, np.int64), stats=np.zeros(3, np.int64))
 
 
 # -- small vector helpers: scalars and tuples only -------------------------------------------------
@@ -358,41 +360,76 @@ def heap_sort(keys, vals, count):
 
 @njit(**JIT)
 def match_rows(contacts, rows, count, enabled):
-    """Each row's accumulated impulses: the previous step's for the same feature key (warm
-    starting), zero for a new contact or with warm starting off."""
+    """Each row's accumulated impulses from the previous step (warm starting): the row with the
+    same feature key; failing that, the row of the same pair of colliders (the key's upper 32
+    bits) whose anchor on a was nearest, within ``MATCH_DISTANCE``; zero for a new contact or
+    with warm starting off.
+
+    The fallback keeps the impulses of a manifold whose feature ids change while its points
+    stay (measured: two resting boxes of the same size, face on face, swap reference faces
+    from step to step and renumber their four points). Without it the 1000 kg box on a 1 kg
+    box restarted its impulses from zero at every step and pushed the light box out sideways."""
     m = rows.prev_count[0] if enabled else 0
+    feat, pf, prev = contacts.feature, rows.prev_feature, rows.prev_impulse
+    imp, ra = rows.impulse, rows.ra
     for c in range(count):
         for k in range(N_ACC):
-            rows.impulse[c, k] = 0.0
+            imp[c, k] = 0.0
         if m == 0:
             continue
-        key = contacts.feature[c]
+        key = feat[c]
+        # lower bound of key in pf[:m]
         lo = 0
-        hi = m - 1
-        while lo <= hi:
+        hi = m
+        while lo < hi:
             mid = (lo + hi) // 2
-            f = rows.prev_feature[mid]
-            if f < key:
+            if pf[mid] < key:
                 lo = mid + 1
-            elif f > key:
-                hi = mid - 1
             else:
-                for k in range(N_ACC):
-                    rows.impulse[c, k] = rows.prev_impulse[mid, k]
-                break
+                hi = mid
+        best = -1
+        if lo < m and pf[lo] == key:
+            best = lo
+        else:
+            pair = key >> 32
+            first = pair << 32
+            lo = 0
+            hi = m
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if pf[mid] < first:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            nearest = MATCH_DISTANCE * MATCH_DISTANCE
+            j = lo
+            while j < m and (pf[j] >> 32) == pair:
+                dx = prev[j, N_ACC] - ra[c, 0]
+                dy = prev[j, N_ACC + 1] - ra[c, 1]
+                dz = prev[j, N_ACC + 2] - ra[c, 2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 < nearest:
+                    nearest = d2
+                    best = j
+                j += 1
+        if best >= 0:
+            for k in range(N_ACC):
+                imp[c, k] = prev[best, k]
 
 
 @njit(**JIT)
 def store_rows(contacts, rows, count):
-    """Keep this step's impulses by feature key for the next step's warm start, and write the
-    (normal, tangent 1, tangent 2) impulses into the contact buffer."""
+    """Keep this step's impulses and anchors by feature key for the next step's warm start, and
+    write the (normal, tangent 1, tangent 2) impulses into the contact buffer."""
+    prev = rows.prev_impulse
     for c in range(count):
         rows.prev_feature[c] = contacts.feature[c]
         for k in range(N_ACC):
-            rows.prev_impulse[c, k] = rows.impulse[c, k]
+            prev[c, k] = rows.impulse[c, k]
         for k in range(3):
+            prev[c, N_ACC + k] = rows.ra[c, k]
             contacts.impulse[c, k] = rows.impulse[c, k]
-    heap_sort(rows.prev_feature, rows.prev_impulse, count)
+    heap_sort(rows.prev_feature, prev, count)
     rows.prev_count[0] = count
 
 
@@ -679,6 +716,14 @@ def impulse_sweep(contacts, rows, count, v, w, inv_mass, inv_inertia):
     (m/s), the convergence measure of the ``tolerance`` parameter."""
     return row_sweep(contacts, rows, count, v, w, inv_mass, inv_inertia, False, v,
                      inv_inertia, 0.0, False, (0.0, 1.0, 0.0), (0.0, 1.0, 0.0), 0.0)
+
+
+@njit(**JIT)
+def count_sweeps(rows, sweeps):
+    """Record a step's velocity sweeps (``stats``: steps, sweeps, the most in one step)."""
+    rows.stats[0] += 1
+    rows.stats[1] += sweeps
+    rows.stats[2] = max(rows.stats[2], sweeps)
 
 
 @njit(**JIT)

@@ -20,6 +20,7 @@ from crosscheck.sim.rigid._jit import INLINE, JIT
 from crosscheck.sim.rigid.contact_rows import (
     SOFT_STEP,
     apply_accumulated,
+    count_sweeps,
     impulse_bias,
     impulse_sweep,
     match_rows,
@@ -177,10 +178,13 @@ def step2d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
         body_velocities(bodies, P, L, sc)
         impulse_bias(contacts, rows, count, h, st.restitution_threshold, sc.v, sc.w)
         apply_accumulated(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia)
-        for _ in range(st.iterations):
+        sweeps = 0
+        while sweeps < st.iterations:
+            sweeps += 1
             if impulse_sweep(contacts, rows, count, sc.v, sc.w, inv_mass,
                              sc.inv_inertia) <= st.tolerance:
                 break
+        count_sweeps(rows, sweeps)
         write_back(bodies, P, L, sc)
         sc.vp[:] = 0.0
         sc.wp[:] = 0.0

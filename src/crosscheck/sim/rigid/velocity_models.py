@@ -41,8 +41,11 @@ _COMMON: dict[str, tuple[Any, str]] = {
 }
 
 SEQUENTIAL_IMPULSE_PARAMETERS: dict[str, tuple[Any, str]] = {
-    "iterations": (30, "projected Gauss-Seidel sweeps per step over every row (at most)"),
-    "tolerance": (0.0, "m/s: stop the sweeps early once no row changes its velocity by more"),
+    "iterations": (1000, "projected Gauss-Seidel sweeps per step over every row, at most: a "
+                   "resting 1000:1 mass ratio needs about as many sweeps as the ratio while "
+                   "its impulses build up (30 let the 1000 kg box squeeze the 1 kg box out)"),
+    "tolerance": (1e-6, "m/s: the sweeps stop once no row changes its velocity by more (warm "
+                  "started resting contacts stop after a few)"),
     "position_iterations": (10, "split-impulse sweeps per step (0: no position correction)"),
     "baumgarte": (0.2, "fraction of the penetration beyond the slop the split impulse removes "
                   "per step (on positions only)"),
@@ -52,7 +55,8 @@ SEQUENTIAL_IMPULSE_PARAMETERS: dict[str, tuple[Any, str]] = {
 
 SOFT_STEP_PARAMETERS: dict[str, tuple[Any, str]] = {
     "substeps": (4, "sub-steps per step (Box2D v3's default)"),
-    "iterations": (1, "biased sweeps per sub-step (Box2D v3: 1)"),
+    "iterations": (2, "biased sweeps per sub-step (Box2D v3: 1; with 1 a 1000 kg box on a "
+                   "1 kg box slid 12.7 mm in 2 s, with 2 it rests: 0.54 mm, measured)"),
     "relax_iterations": (1, "sweeps without bias after each sub-step's drift (Box2D v3: 1)"),
     "contact_hertz": (0.0, "Hz: contact stiffness as a natural frequency (static contacts "
                       "twice), capped at a quarter of the sub-step rate as in Box2D v3; 0: the "
@@ -145,6 +149,10 @@ class VelocityStepper:
                "contact_capacity": self.contacts.capacity,
                "friction_cone": "isotropic (Coulomb disc per contact point)",
                "rotation_update": self.integrator.rotation}
+        stats = self.rows.stats
+        if self.name == "sequential_impulse" and stats[0] > 0:
+            out["sweeps_per_step_mean"] = float(stats[1]) / float(stats[0])
+            out["sweeps_per_step_max"] = int(stats[2])
         if self.name == "soft_step":
             if self.h is not None:
                 cap = 0.25 * self.settings.substeps / self.h
