@@ -28,6 +28,7 @@ from crosscheck.sim.rigid.contact_rows import (
     impulse_bias,
     impulse_sweep,
     match_rows,
+    move_anchors,
     prepare_rows,
     restitution_pass,
     soft_coefficients,
@@ -190,17 +191,16 @@ def step3d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
                 apply_accumulated(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia)
                 for _ in range(st.iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               sc.dp, sc.dR, 1.0 / hs, True, contact_soft, static_soft,
-                               st.push_speed)
+                               1.0 / hs, True, contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
             drift(bodies, st.rotation, x, q, P, L, sc, hs)
             if count > 0:
                 motion_since(x, q, sc)
+                move_anchors(contacts, rows, count, sc.dp, sc.dR)
                 body_velocities(bodies, q, P, L, sc)
                 for _ in range(st.relax_iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               sc.dp, sc.dR, 1.0 / hs, False, contact_soft, static_soft,
-                               st.push_speed)
+                               1.0 / hs, False, contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
         if count > 0:
             body_velocities(bodies, q, P, L, sc)
