@@ -32,14 +32,15 @@ MODELS = ("sequential_impulse", "soft_step")
 
 
 def _cell(case: str, run: str) -> dict:
-    import tomllib
+    """One cell as ``crosscheck run`` builds and runs it (analytic references need no task)."""
+    from crosscheck.runner.plan import build_matrix
+    from crosscheck.scene.loader import load_case
 
-    path = CASES / f"{case}.toml"
-    dt = tomllib.loads(path.read_text())["run"]["dt"]
-    result = execute_task({"id": f"{case}:{run}", "kind": "cell", "case": case,
-                           "case_file": str(path), "engine": "inhouse", "integrator": run,
-                           "dt": dt, "cost": False})
-    return result
+    matrix = build_matrix([load_case(CASES / f"{case}.toml")], engines=["inhouse"],
+                          integrators=[run], cost=False)
+    assert not matrix.references
+    (task,) = matrix.cells
+    return execute_task(task)
 
 
 def _value(result: dict, metric: str) -> float:
