@@ -1,8 +1,10 @@
 """The in-house engine adapter: crosscheck's own simulators behind the adapter protocol.
 
-Rigid scenes (2D and 3D, no contact) run on :mod:`crosscheck.sim.rigid`: a session compiles the
-Scene into a RigidModel and steps the Baraff state with the named integrator of
-``crosscheck.sim.rigid.INTEGRATORS``; the run driver (engines/driver.py) samples and times it.
+Rigid scenes (2D and 3D) run on :mod:`crosscheck.sim.rigid`: a session compiles the Scene into
+a RigidModel and steps the Baraff state with the named integrator of
+``crosscheck.sim.rigid.INTEGRATORS``; a contact scene runs ``integrator+model`` through the
+contact model's stepper (``sim/rigid/contact_models.py``), with its parameters from
+``[engine_options.inhouse.<model>]``. The run driver (engines/driver.py) samples and times it.
 The observed quantities are exactly the Trajectory convention: the state's x *is* the centre of
 mass (world), its q the orientation of the declared body frame, P / m the centre-of-mass
 velocity and R I_body^-1 R^T L the world angular velocity, so nothing is converted.

@@ -15,6 +15,7 @@ from typing import Any
 
 from crosscheck.names import contact_model_info
 from crosscheck.sim.collide import DEFAULT_MARGIN, compile_geometry, contact_capacity, new_contacts
+from crosscheck.sim.rigid import velocity2d, velocity3d
 from crosscheck.sim.rigid.contact_models import bind_contact_model
 from crosscheck.sim.rigid.contact_rows import (
     ROTATION_EXP,
@@ -90,8 +91,6 @@ class VelocityStepper:
     """A scene's geometry, contact buffer and solver rows, stepped by one compiled call."""
 
     def __init__(self, model_name: str, scene, model, integrator, parameters: dict[str, Any]):
-        from crosscheck.sim.rigid import velocity2d, velocity3d
-
         defaults = (SOFT_STEP_PARAMETERS if model_name == "soft_step"
                     else SEQUENTIAL_IMPULSE_PARAMETERS)
         unknown = sorted(set(parameters) - set(defaults))
