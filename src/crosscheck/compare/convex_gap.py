@@ -30,7 +30,6 @@ import functools
 import numpy as np
 
 
-
 def available() -> bool:
     try:
         import fcl  # noqa: F401
