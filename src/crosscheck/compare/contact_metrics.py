@@ -31,7 +31,8 @@ Gap and penetration depth of a pair (m)
     Without FCL those pairs make both penetration metrics *not measurable*: value None,
     meaningful False and the pair types named, never a silent 0. Body-body pairs are pruned
     once per sample by a NumPy sort-and-sweep on the world bounding boxes (inflated by the
-    contact tolerance), so a pile of many bodies costs ``O(T (N log N + K))`` with no Python loop over pairs.
+    contact tolerance), so a pile of many bodies costs ``O(T (N log N + K))`` with no Python
+    loop over pairs.
 
 In contact, resting
     A pair is *in contact* at a sample when ``gap <= CONTACT_GAP_FRACTION * r`` (``r`` the
