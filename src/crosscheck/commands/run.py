@@ -51,6 +51,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="skip the cost pass (timed stepping without recording): verdicts only")
     p.add_argument("--cost-repeats", type=int, default=None, metavar="N",
                    help="time each cell's stepping at least N times (default 3)")
+    p.add_argument("--cost-processes", type=int, default=None, metavar="K",
+                   help="spread each rigid cell's cost pass over K tasks run later in whichever "
+                        "worker is free, pooled so a process's own timing offset is inside the "
+                        "reported spread (default 3; 1 times the cell's own process only)")
     p.add_argument("--cost-seconds", type=float, default=None, metavar="S",
                    help="and for at least S seconds in all (default 0.2)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
@@ -89,7 +93,7 @@ def _engine_refs(items: list[str]) -> dict[str, str]:
 
 
 def _cost_option(args) -> bool | dict:
-    """--no-cost, --cost-repeats, --cost-seconds as build_matrix's ``cost``."""
+    """--no-cost, --cost-repeats, --cost-processes, --cost-seconds as build_matrix's ``cost``."""
     from crosscheck.runner.plan import UsageError
 
     if args.no_cost:
@@ -100,6 +104,11 @@ def _cost_option(args) -> bool | dict:
             raise UsageError("--cost-repeats: expected a positive integer, "
                              f"got {args.cost_repeats}")
         plan["min_repeats"] = args.cost_repeats
+    if args.cost_processes is not None:
+        if args.cost_processes < 1:
+            raise UsageError("--cost-processes: expected a positive integer, "
+                             f"got {args.cost_processes}")
+        plan["processes"] = args.cost_processes
     if args.cost_seconds is not None:
         if not args.cost_seconds >= 0:
             raise UsageError(f"--cost-seconds: expected seconds >= 0, got {args.cost_seconds}")
