@@ -40,7 +40,10 @@ from its last step, and neither changeDynamics nor a pose reset refreshes it.
   centre of mass: the plane is exact; the joint coordinates are the centre of mass and the angle.
 * ``maximal``: a free rigid body with the in-plane state, projected back (no planar joint exists
   for a maximal-coordinate body); it carries the isotropic inertia (I, I, I), so the gyroscopic
-  term vanishes and nothing pushes it out of the plane.
+  term vanishes and nothing pushes it out of the plane. Contact would: 2D contact is the chain's
+  only (``contact_plan``, ``MAXIMAL_2D_CONTACT``).
+* Contact: each 2D shape is a prism along z on the chain's last link, the ground line a plane
+  containing z (``contact_plan``; docs/engines.md, PyBullet, "Contact").
 
 Either way the out-of-plane drift is read from PyBullet and kept in ``extras``:
 ``out_of_plane`` (T, N) the centre of mass' z (m), ``out_of_plane_tilt`` (T, N) the angle between
@@ -133,11 +136,14 @@ PAIR_TOLERANCE = 1e-12
 # refusal lifted (benchmarks/contact_pybullet_2d.py; None lifts it, for that measurement only).
 MAXIMAL_2D_CONTACT: str | None = (
     "2D contact needs the planar chain (integrator multibody): a maximal-coordinate body has no "
-    "joint holding it in the plane, and Bullet puts a plane contact's points on one face of the "
-    "prism (z = +depth), so contact tilts it out of the plane. Measured at dt = 1e-3 with this "
-    "refusal lifted: the elastic circle tumbles (tilt 3.1 rad, z 2.7 m, apex error 27 %), "
-    "billiard circles tilt 0.56 rad and transfer 8 % too little momentum, the sliding box "
-    "tilts 0.064 rad and stops 2.6 % short, the slipping disk spins 0.23 rad/s wrong; the "
+    "joint holding it in the plane, and Bullet puts the contact points of a prism on the ground "
+    "or on a circle on one face of the prism (z = +depth), so contact tilts it out of the "
+    "plane. Measured through the adapter with this refusal lifted (contact cases, dt = 1e-3; "
+    "cradle 1e-4): the elastic circle tumbles (tilt 3.1 rad, z 2.7 m, apex error 27 %), the "
+    "box on the 35 degree incline tilts 0.71 rad (mu_eff off by 0.016), the billiard circles "
+    "tilt 0.56 rad and transfer 8.3 % too little momentum, the cradle's last circle leaves "
+    "0.31 m/s slow, the sliding box tilts 0.064 rad and stops 2.6 % short, the slipping disk's "
+    "spin is 0.23 rad/s off; no prism depth from 0.1 to 10 times the adapter's avoids it. The "
     "multibody chain stays in the plane exactly (benchmarks/contact_pybullet_2d.py)")
 
 
