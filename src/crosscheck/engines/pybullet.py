@@ -141,8 +141,8 @@ MAXIMAL_2D_CONTACT: str | None = (
     "plane. Measured through the adapter with this refusal lifted (contact cases, dt = 1e-3; "
     "cradle 1e-4): the elastic circle tumbles (tilt 3.1 rad, z 2.7 m, apex error 27 %), the "
     "box on the 35 degree incline tilts 0.71 rad (mu_eff off by 0.016), the billiard circles "
-    "tilt 0.56 rad and transfer 8.3 % too little momentum, the cradle's last circle leaves "
-    "0.31 m/s slow, the sliding box tilts 0.064 rad and stops 2.6 % short, the slipping disk's "
+    "tilt 0.56 rad and their momentum transfer is 8.3 % off, the cradle's velocities 0.31 "
+    "m/s off, the sliding box tilts 0.064 rad and stops 2.6 % short, the slipping disk's "
     "spin is 0.23 rad/s off; no prism depth from 0.1 to 10 times the adapter's avoids it. The "
     "multibody chain stays in the plane exactly (benchmarks/contact_pybullet_2d.py)")
 
@@ -1129,7 +1129,9 @@ class PybulletModel:
             "parameters": self.options["contact_parameters"],
             "kind_reason": ("every colliding pair has restitution > 0" if impact else
                             "every colliding pair has restitution 0"),
-            "body_kind": _contact_note(plan["kind"], self.maximal),
+            "body_kind": _contact_note(plan["kind"], self.maximal) + (
+                "; 2D: the planar chain is the only kind (MAXIMAL_2D_CONTACT)"
+                if self.dim == 2 else ""),
             "ground_and_statics": ("static bodies, useMaximalCoordinates="
                                    f"{self.maximal} like the bodies (CONTACTS.md C10)"),
             "shapes": ("sphere, box, capsule (cylindrical length), cylinder: Bullet's own; mesh: "
