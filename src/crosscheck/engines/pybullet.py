@@ -693,8 +693,7 @@ class PybulletModel:
         if scene.ground is not None:
             n = np.asarray(scene.ground.normal, float)
             if self.dim == 2:  # the ground line: a plane containing z, its trace the line
-                n = np.array([n[0], n[1], 0.0])
-            n = n / np.linalg.norm(n)
+                n = np.array([n[0], n[1], 0.0])  # a unit normal (the loader's) stays one
             # btStaticPlaneShape(normal, 0) in the ground body's frame, the body at n * offset
             plane = _p.createCollisionShape(_p.GEOM_PLANE, planeNormal=n.tolist(),
                                             physicsClientId=cid)
