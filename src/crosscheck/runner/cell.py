@@ -185,6 +185,15 @@ def cost_followups(task: dict[str, Any], result: dict[str, Any]) -> list[dict[st
     detail = result.get("cost_detail") or {}
     if plan.processes <= 1 or not detail.get("repeats") or not detail.get("steps"):
         return []
+    # A long run (its own pass already spent a process's share of the timing budget) is timed
+    # in its own process only: its process offset is small against its length, and more
+    # processes would multiply the run's longest cells.
+    if sum(detail.get("wall_samples") or []) > plan.budget_seconds / plan.processes:
+        result["cost_detail"] = dict(detail, note="; ".join(filter(None, [
+            detail.get("note"), f"timed in one process: its pass took "
+            f"{sum(detail['wall_samples']):.3g} s, more than the budget's share "
+            f"{plan.budget_seconds / plan.processes:.3g} s"])))
+        return []
     keep = ("case", "case_file", "engine", "integrator", "dt", "timeout", "engine_refs", "cost")
     return [dict({k: task.get(k) for k in keep}, kind="cost", id=f"{task['id']}#cost{k + 2}",
                  cell=task["id"], steps=int(detail["steps"]))
