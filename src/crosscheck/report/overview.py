@@ -162,12 +162,13 @@ def problems(doc: dict[str, Any], cells: list[dict[str, Any]]) -> list[Problem]:
                 f"{ch['metric']} {_v(ch.get('old'))} -> {_v(ch.get('new'))} "
                 f"(slack {_v(ch.get('slack'))})")
         out.append(Problem(cell.get("case") or ch["cell"].split("::")[0], "regression",
-                           f"{ch['cell']}: {what}"))
+                           f"{ch['cell'].split('::', 1)[-1]}: {what}"))
     failing = sorted((c for c in cells if c.get("status") in FAILING),
                      key=lambda c: (SEVERITY[c["status"]], c["case"], run_label(c)))
     for c in failing:
         e = entry(c)
-        out.append(Problem(c["case"], c["status"], f"{c['id']}: {WORDS[c['status']]} "
+        out.append(Problem(c["case"], c["status"], f"{c['id'].split('::', 1)[-1]}: "
+                           f"{WORDS[c['status']]} "
                            + (e.text + "; " if c["status"] == "blowup" else "") + e.detail))
     return out
 
