@@ -32,16 +32,36 @@ class Look:
     marker: str
 
 
+def _known_rank(engine: str, integrator: str) -> tuple[int, int] | None:
+    """Where crosscheck.names lists the run: rigid integrators in its order, then contact runs
+    (integrator+model) by their integrator, then fluid schemes; None for a name it lacks."""
+    from crosscheck import names
+
+    try:
+        rigid, fluid = names.rigid_names(engine), names.fluid_names(engine)
+    except (KeyError, ValueError):
+        return None
+    base = integrator.split(names.SEPARATOR, 1)[0]
+    if integrator in rigid:
+        return (0, rigid.index(integrator))
+    if base in rigid:
+        return (1, rigid.index(base))
+    if integrator in fluid:
+        return (2, fluid.index(integrator))
+    return None
+
+
 def ordered_labels(cells: list[dict[str, Any]]) -> list[str]:
     """Every run label of ``cells``, grouped by engine (known engines first), each engine's runs
-    in the order they first appear."""
-    first: dict[str, tuple[int, int]] = {}
+    in crosscheck.names' order (rigid integrators, contact runs, fluid schemes), names it does
+    not know (test fakes, adapters in development) after them in the order they appear."""
+    first: dict[str, tuple] = {}
     for k, c in enumerate(cells):
         label = run_label(c)
         if label not in first:
             engine = c["engine"]
             rank = ENGINE_ORDER.index(engine) if engine in ENGINE_ORDER else len(ENGINE_ORDER)
-            first[label] = (rank, k)
+            first[label] = (rank, _known_rank(engine, c["integrator"]) or (3, k), k)
     return sorted(first, key=lambda label: first[label])
 
 
