@@ -404,10 +404,13 @@ def figure(case: str, metric: str | None, series: list[Series],
     if target is not None:
         ax1.axhline(target, color="k", linestyle=":", linewidth=1)
         handles[f"target {target:g}"] = Line2D([], [], color="k", linestyle=":")
-    for y, text in _floors(series, drawn):
+    for lo, hi, text in _floors(series, drawn):
         for ax in (ax1, ax2):
-            ax.axhline(y, color="#777777", linestyle="-.", linewidth=0.9)
-        ax2.annotate(text, (0.0, y), xycoords=("axes fraction", "data"), xytext=(3, 3),
+            if hi > lo:
+                ax.axhspan(lo, hi, color="#999999", alpha=0.2, linewidth=0)
+            else:
+                ax.axhline(lo, color="#777777", linestyle="-.", linewidth=0.9)
+        ax2.annotate(text, (0.0, hi), xycoords=("axes fraction", "data"), xytext=(3, 3),
                      textcoords="offset points", fontsize=7, color="#555555")
     _frontiers(ax2, ax3, series, looks)
     if any(s.largest_stable_dt for s in series):
@@ -443,15 +446,20 @@ def figure(case: str, metric: str | None, series: list[Series],
     return data
 
 
-def _floors(series: list[Series], drawn: list[float]) -> list[tuple[float, str]]:
-    """The floors in play: round-off when some point is near it, and each metric resolution's
-    RESOLUTION_FACTOR multiple (errors below it are at the floor)."""
+def _floors(series: list[Series], drawn: list[float]) -> list[tuple[float, float, str]]:
+    """The floors in play as (low, high, words): round-off when some point is near it (a
+    line), and RESOLUTION_FACTOR x the metric's resolution (errors below it are at the floor):
+    a line, or a band when the resolution differs between runs (a flip period's crossing
+    interpolation resolves differently in each run)."""
     out = []
     if drawn and min(drawn) < 1e3 * ERROR_FLOOR:
-        out.append((ERROR_FLOOR, f"round-off floor {ERROR_FLOOR:g}"))
-    for r in sorted({r for s in series for r in s.resolutions if r}):
-        out.append((RESOLUTION_FACTOR * r, f"floor: {RESOLUTION_FACTOR:g} x the metric's "
-                    f"resolution {r:.2g}"))
+        out.append((ERROR_FLOOR, ERROR_FLOOR, f"round-off floor {ERROR_FLOOR:g}"))
+    res = sorted({r for s in series for r in s.resolutions if r})
+    if res:
+        lo, hi = RESOLUTION_FACTOR * res[0], RESOLUTION_FACTOR * res[-1]
+        span = f"{lo:.2g}" if hi <= lo * 1.01 else f"{lo:.2g} to {hi:.2g}"
+        out.append((lo, hi if hi > lo * 1.01 else lo,
+                    f"floor: {RESOLUTION_FACTOR:g} x the metric's resolution ({span})"))
     return out
 
 
