@@ -83,7 +83,9 @@ def report(tmp_path_factory):
                 "entries": {"alpha::inhouse-euler@dt=0.01": {
                     "status": "pass", "metrics": {"position_error_max": 0.012}}}}
     out = folder / "out"
-    matrix = build_matrix(scenes, out=out, engine_refs=er)
+    # Two timed repetitions and no minimum time: a cost figure to draw, a short test.
+    matrix = build_matrix(scenes, out=out, engine_refs=er,
+                          cost={"min_repeats": 2, "min_seconds": 0.0})
     outcome = run_and_report(matrix, LocalBackend(1), out, baseline=baseline,
                              baseline_file="baseline.json")
     return out, outcome
@@ -94,9 +96,8 @@ def test_index_html_in_chromium(browser, report):
     check = open_page(browser, out / "index.html", screenshot=out / "screenshot.png")
     assert check.errors == []
     assert check.title == "crosscheck FAILED"
-    expected = {c["case"]: sorted(f"{c['engine']}-{c['integrator']}" for c in outcome.cells
-                                  if c["case"] == case) for case in ("alpha", "beta")
-                for c in outcome.cells if c["case"] == case}
+    expected = {case: sorted(f"{c['engine']}-{c['integrator']}" for c in outcome.cells
+                             if c["case"] == case) for case in ("alpha", "beta")}
     assert {case: sorted(runs) for case, runs in check.matrix.items()} == expected
     assert len(expected["alpha"]) == 5  # exact, euler, fast_spin, mujoco n/a, pybullet blow-up
     # Every image decodes: two figures per case (over time, accuracy against cost).

@@ -12,7 +12,6 @@ on the metric are dashed lines. Both axes are logarithmic and labelled
 
 from __future__ import annotations
 
-import warnings
 from typing import Any
 
 from crosscheck.report import pareto
@@ -75,9 +74,10 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
     log_ticks(ax, "both")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        fig.tight_layout()
+    # Fixed margins (inches of a 9.6 x 3.8 in figure), the legend in the right one: cheaper
+    # than tight_layout's extra draw (crosscheck.report.plots).
+    fig.subplots_adjust(left=0.8 / 9.6, right=1 - 2.6 / 9.6, top=1 - 0.35 / 3.8,
+                        bottom=0.6 / 3.8)
     data, mime = encode(fig)
     plt.close(fig)
     return Figure(data, mime)
