@@ -42,7 +42,7 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
     runs = [c for c in cells if (c.get("cost") or 0) > 0 and value(c, metric) is not None]
     if len(runs) < 2:
         return None
-    multi_dt = len({c["dt"] for c in runs}) > 1
+    seen: set[str] = set()
     unit = next((c["metrics"][metric].get("unit") for c in runs
                  if c["metrics"][metric].get("unit")), "")
     fig, ax = plt.subplots(figsize=(9.6, 3.8))
@@ -54,7 +54,9 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
             ax.plot([min(x, bar[0]), bar[1]], [y, y], color=look.color, linewidth=0.8)
             ax.plot(list(bar), [y, y], color=look.color, linewidth=3.5, alpha=0.45,
                     solid_capstyle="butt")
-        label = run_label(c) + (f" dt={c['dt']:g}" if multi_dt else "")
+        # One legend entry per run: a run's steps share its look (a sweep's page has many).
+        label = run_label(c) if run_label(c) not in seen else None
+        seen.add(run_label(c))
         ax.plot([x], [y], linestyle="none", marker=look.marker, color=look.color,
                 markersize=7, label=label, zorder=4)
     best = [points[i] for i in pareto.front(points)]
