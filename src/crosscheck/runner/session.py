@@ -114,10 +114,11 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
     _refresh(doc, cells, backend, started)
     comparison = None
     if baseline is not None:
-        from crosscheck.baseline import compare
+        from crosscheck.baseline import compare, describe
 
         comparison = compare(baseline, doc)
-        doc["baseline"] = dict(comparison.to_dict(), file=baseline_file)
+        doc["baseline"] = dict(comparison.to_dict(), file=baseline_file,
+                               **describe(baseline, doc))
         by_cell: dict[str, list[str]] = {}
         for ch in comparison.regressions:
             by_cell.setdefault(ch.key, []).append(
