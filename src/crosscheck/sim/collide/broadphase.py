@@ -62,3 +62,82 @@ def box_reaches_plane(geom, lo, hi, c, g, margin):
         nr = geom.plane_normal[g, r]
         d += nr * (lo[c, r] if nr > 0.0 else hi[c, r])
     return d - geom.plane_offset[g] <= margin
+
+
+# -- sweep and prune ------------------------------------------------------------------------------
+@njit(**INLINE)
+def _sweep_axis(lo, hi):
+    """The axis along which the boxes' centres spread most (ties: the lower axis): the sweep
+    prunes best along it. A pure function of the boxes, so the pairs' order depends on the
+    state only, never on what was detected before."""
+    c = lo.shape[0]
+    best = 0
+    best_var = -1.0
+    for r in range(lo.shape[1]):
+        mean = 0.0
+        for i in range(c):
+            mean += 0.5 * (lo[i, r] + hi[i, r])
+        mean /= max(c, 1)
+        var = 0.0
+        for i in range(c):
+            d = 0.5 * (lo[i, r] + hi[i, r]) - mean
+            var += d * d
+        if var > best_var:
+            best_var = var
+            best = r
+    return best
+
+
+@njit(**INLINE)
+def _before(lo, axis, i, j):
+    """Strict total order of the sweep: by the box's low end along the axis, then by index."""
+    return lo[i, axis] < lo[j, axis] or (lo[i, axis] == lo[j, axis] and i < j)
+
+
+@njit(**JIT)
+def sort_sweep_order(lo, axis, order, same_axis):
+    """Sort ``order`` (collider indices) by ``_before``. With the same axis as last time the
+    previous order is nearly sorted (bodies move little per step): insertion sort, O(C + swaps);
+    otherwise a full sort. The order is a total one, so the result does not depend on the order
+    given."""
+    c = order.shape[0]
+    if not same_axis:
+        keys = np.empty(c)
+        for i in range(c):
+            keys[i] = lo[i, axis]
+        # stable from the identity: equal keys keep index order, as _before says
+        sorted_ = np.argsort(keys, kind="mergesort")
+        for k in range(c):
+            order[k] = sorted_[k]
+        return
+    for k in range(1, c):
+        i = order[k]
+        m = k - 1
+        while m >= 0 and _before(lo, axis, i, order[m]):
+            order[m + 1] = order[m]
+            m -= 1
+        order[m + 1] = i
+
+
+@njit(**JIT)
+def sweep_and_prune(geom, lo, hi, pairs):
+    """Every overlapping pair (as brute_force_pairs finds, in sweep order): sort the boxes by
+    their low end along the axis of largest spread, then pair each box with the boxes that start
+    before it ends, checking the other axes. Reuses the order of the previous call
+    (``geom.sweep_order``, ``geom.sweep_axis``): near-linear while bodies move little."""
+    c = lo.shape[0]
+    order = geom.sweep_order
+    axis = _sweep_axis(lo, hi)
+    sort_sweep_order(lo, axis, order, geom.sweep_axis[0] == axis)
+    geom.sweep_axis[0] = axis
+    n = 0
+    for k in range(c):
+        i = order[k]
+        end = hi[i, axis]
+        for m in range(k + 1, c):
+            j = order[m]
+            if lo[j, axis] > end:
+                break
+            if boxes_overlap(lo, hi, i, j) and may_touch(geom, i, j):
+                pairs, n = push_pair(pairs, n, i, j)
+    return pairs, n

@@ -23,8 +23,9 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
-from crosscheck.sim.collide.broadphase import box_reaches_plane, brute_force_pairs
+from crosscheck.sim.collide.broadphase import box_reaches_plane, sweep_and_prune
 from crosscheck.sim.collide.contacts import Contacts
+from crosscheck.sim.collide.convex3d import CAP_POINTS, convex_convex
 from crosscheck.sim.collide.geometry import (
     BOX,
     CAPSULE,
@@ -35,9 +36,15 @@ from crosscheck.sim.collide.geometry import (
     Geometry2D,
     Geometry3D,
 )
+from crosscheck.sim.collide.gjk import (
+    EPA_MAX_FACES,
+    EPA_MAX_VERTS,
+    GjkScratch,
+)
 from crosscheck.sim.collide.manifold import MAX_CANDIDATES, Manifold
 from crosscheck.sim.collide.narrow2d import circle_polygon, circles, line_collider, polygon_polygon
 from crosscheck.sim.collide.narrow3d import (
+    capsule_capsule,
     plane_collider,
     sphere_box,
     sphere_capsule,
@@ -108,7 +115,7 @@ def row_order(geom, i, j):
 
 # -- 3D -------------------------------------------------------------------------------------------
 @njit(**INLINE)
-def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch):
+def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch, gs, lam):
     """Manifold of colliders (ca, cb), normal from ca to cb; the routines take their shapes in
     kind order, so a pair given the other way round is computed swapped and its normal negated."""
     ka, kb = geom.kind[ca], geom.kind[cb]
@@ -130,8 +137,15 @@ def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch):
         elif kb == CYLINDER:
             n = sphere_cylinder(wpos, wrot, ca, r, cb, geom.size[cb, 0], geom.size[cb, 1],
                                 margin, man)
+        else:
+            n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
     elif (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
         n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch)
+    elif ka == CAPSULE and kb == CAPSULE:
+        n = capsule_capsule(wpos, wrot, ca, geom.size[ca, 0], geom.size[ca, 1], cb,
+                            geom.size[cb, 0], geom.size[cb, 1], margin, man)
+    else:
+        n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
     if swapped and n > 0:
         for r in range(3):
             man.normal[r] = -man.normal[r]
@@ -152,16 +166,22 @@ def detect3d(geom, x, q, contacts):
     bounding_boxes3d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    m = 2 * geom.max_face_verts + 4
+    m = 2 * max(geom.max_face_verts, CAP_POINTS) + 4
     scratch = PolytopeScratch(np.zeros((geom.max_poly_verts, 3)),
                               np.zeros((geom.max_poly_verts, 3)), np.zeros((m, 3)),
-                              np.zeros((m, 3)), np.zeros(m, np.int64), np.zeros(m, np.int64))
-    pairs, n_pairs = brute_force_pairs(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
+                              np.zeros((m, 3)), np.zeros(m, np.int64), np.zeros(m, np.int64),
+                              np.zeros((m, 3)))
+    gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
+                    np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
+                    np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),
+                    np.zeros((3 * EPA_MAX_FACES, 2), np.int64))
+    lam = np.zeros(4)
+    pairs, n_pairs = sweep_and_prune(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
     n_keys = c + n_planes
     needed = 0
     for p in range(n_pairs):
         first, second = row_order(geom, pairs[p, 0], pairs[p, 1])
-        n = collide_pair3d(geom, wpos, wrot, first, second, margin, man, scratch)
+        n = collide_pair3d(geom, wpos, wrot, first, second, margin, man, scratch, gs, lam)
         if n > 0:
             needed = emit(geom, contacts, man, n, first, second, geom.body[first],
                           geom.body[second], False, first * n_keys + second,
@@ -216,7 +236,7 @@ def detect2d(geom, x, angle, contacts):
     bounding_boxes2d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(2), np.zeros((MAX_CANDIDATES, 2)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    pairs, n_pairs = brute_force_pairs(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
+    pairs, n_pairs = sweep_and_prune(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
     n_keys = c + n_planes
     needed = 0
     for p in range(n_pairs):

@@ -1,4 +1,5 @@
-"""The scene's colliders compiled once into arrays the detection kernels read (and never write).
+"""The scene's colliders compiled once into arrays the detection kernels read (and, but for the
+broad phase's sort cache, never write).
 
 One collider per body (collider ``i`` is body ``i``: its shape in the body frame, placed relative
 to the centre of mass), then one per static (a fixed world pose); the ground plane apart (a
@@ -53,6 +54,8 @@ class Geometry3D(NamedTuple):
     body: np.ndarray  # (C,) int64: body index, -1 for a static
     size: np.ndarray  # (C, 3): sphere (r, 0, 0), box half extents, capsule and cylinder
     #                   (r, half length along z, 0), hull (0, 0, 0)
+    bound_radius: np.ndarray  # (C,) radius of a sphere about the shape frame's origin holding
+    #                           the shape (a length scale for tolerances)
     frame_pos: np.ndarray  # (C, 3): bodies: the shape frame's origin relative to the centre of
     #                        mass, body frame (= -com); statics: world position
     frame_rot: np.ndarray  # (C, 3, 3): bodies: identity; statics: world rotation
@@ -83,6 +86,10 @@ class Geometry3D(NamedTuple):
     pair_collide: np.ndarray  # (K, K) bool
     max_poly_verts: int  # the largest polytope's vertex count (scratch sizes)
     max_face_verts: int  # the largest face's vertex count
+    # The broad phase's cache, the one thing detection writes here: the sweep order of the last
+    # call and its axis (-1: none yet). It changes the cost of the next sort, never a result.
+    sweep_order: np.ndarray  # (C,) int64
+    sweep_axis: np.ndarray  # (1,) int64
 
     @property
     def n_colliders(self) -> int:
@@ -116,6 +123,8 @@ class Geometry2D(NamedTuple):
     pair_torsional_friction: np.ndarray  # (K, K)
     pair_collide: np.ndarray  # (K, K) bool
     max_poly_verts: int
+    sweep_order: np.ndarray  # (C,) int64, the broad phase's cache (see Geometry3D)
+    sweep_axis: np.ndarray  # (1,) int64
 
     @property
     def n_colliders(self) -> int:
@@ -192,9 +201,11 @@ def _compile3d(scene: Scene, margin: float) -> Geometry3D:
     table = pair_table(scene)
     polys: list[Polytope] = []
     poly_index: dict[tuple, int] = {}
-    kind, size, fpos, frot, poly = [], [], [], [], []
+    kind, size, fpos, frot, poly, bound = [], [], [], [], [], []
     for shape, pos, orientation in _placements(scene):
         p = -1
+        lo, hi = shape.bounding_box()
+        bound.append(float(np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi)))))
         if isinstance(shape, Sphere):
             k, s = SPHERE, (shape.radius, 0.0, 0.0)
         elif isinstance(shape, Box):
@@ -230,14 +241,16 @@ def _compile3d(scene: Scene, margin: float) -> Geometry3D:
         n_bodies=n, margin=margin,
         kind=np.array(kind, dtype=np.int64).reshape(c),
         body=np.array([*range(n), *([-1] * (c - n))], dtype=np.int64).reshape(c),
-        size=_f64(size, (c, 3)), frame_pos=_f64(fpos, (c, 3)), frame_rot=_f64(frot, (c, 3, 3)),
+        size=_f64(size, (c, 3)), bound_radius=_f64(bound, (c,)), frame_pos=_f64(fpos, (c, 3)),
+        frame_rot=_f64(frot, (c, 3, 3)),
         material_class=table.collider_class, polytope=np.array(poly, dtype=np.int64).reshape(c),
         **arrays, plane_normal=planes[0], plane_offset=planes[1], plane_class=table.plane_class,
         pair_friction=table.friction, pair_restitution=table.restitution,
         pair_rolling_friction=table.rolling_friction,
         pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
         max_poly_verts=max([len(p.vertices) for p in polys], default=1),
-        max_face_verts=max([len(f) for p in polys for f in p.faces], default=1))
+        max_face_verts=max([len(f) for p in polys for f in p.faces], default=1),
+        **_sweep_cache(c))
 
 
 def _polytope_arrays(polys: list[Polytope]) -> dict[str, np.ndarray]:
@@ -319,7 +332,11 @@ def _compile2d(scene: Scene, margin: float) -> Geometry2D:
         pair_friction=table.friction, pair_restitution=table.restitution,
         pair_rolling_friction=table.rolling_friction,
         pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
-        max_poly_verts=max([len(v) for v in polys], default=1))
+        max_poly_verts=max([len(v) for v in polys], default=1), **_sweep_cache(c))
+
+
+def _sweep_cache(c: int) -> dict[str, np.ndarray]:
+    return dict(sweep_order=np.arange(c, dtype=np.int64), sweep_axis=np.full(1, -1, np.int64))
 
 
 def _f64(a, shape) -> np.ndarray:

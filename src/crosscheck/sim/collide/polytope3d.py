@@ -27,7 +27,9 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
+from crosscheck.sim.collide.clip3d import clip_polygon
 from crosscheck.sim.collide.manifold import MAX_CANDIDATES, put_point, reduce_to_four, set_normal
+from crosscheck.sim.collide.narrow3d import segment_segment
 
 # An edge axis is taken over a face axis when it separates by more than this (absolute m, plus a
 # fraction of the face separation's size): ties go to the faces, whose manifolds are stable.
@@ -51,13 +53,14 @@ class PolytopeScratch(NamedTuple):
     clip_out: np.ndarray  # (M, 3)
     id_in: np.ndarray  # (M,) int64 origin of each polygon vertex (feature)
     id_out: np.ndarray  # (M,) int64
+    ref: np.ndarray  # (M, 3) the reference polygon
 
 
 def new_polytope_scratch(max_poly_verts: int, max_face_verts: int) -> PolytopeScratch:
     m = 2 * max_face_verts + 4
     return PolytopeScratch(np.zeros((max_poly_verts, 3)), np.zeros((max_poly_verts, 3)),
                            np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m, np.int64),
-                           np.zeros(m, np.int64))
+                           np.zeros(m, np.int64), np.zeros((m, 3)))
 
 
 @njit(**INLINE)
@@ -221,42 +224,6 @@ def _edge_contact(geom, ca, cb, ei, ej, nx, ny, nz, va, vb, man):
 
 
 @njit(**INLINE)
-def segment_segment(p0x, p0y, p0z, p1x, p1y, p1z, q0x, q0y, q0z, q1x, q1y, q1z):
-    """Closest points of segments p0-p1 and q0-q1 (Ericson, Real-Time Collision Detection 5.1.9,
-    written here from the formulas): the line parameters, clamped, re-projected once."""
-    d1x, d1y, d1z = p1x - p0x, p1y - p0y, p1z - p0z
-    d2x, d2y, d2z = q1x - q0x, q1y - q0y, q1z - q0z
-    rx, ry, rz = p0x - q0x, p0y - q0y, p0z - q0z
-    a = d1x * d1x + d1y * d1y + d1z * d1z
-    e = d2x * d2x + d2y * d2y + d2z * d2z
-    f = d2x * rx + d2y * ry + d2z * rz
-    s = 0.0
-    t = 0.0
-    if a <= 0.0 and e <= 0.0:
-        pass
-    elif a <= 0.0:
-        t = min(1.0, max(0.0, f / e))
-    else:
-        c = d1x * rx + d1y * ry + d1z * rz
-        if e <= 0.0:
-            s = min(1.0, max(0.0, -c / a))
-        else:
-            b = d1x * d2x + d1y * d2y + d1z * d2z
-            denom = a * e - b * b
-            if denom > 0.0:
-                s = min(1.0, max(0.0, (b * f - c * e) / denom))
-            t = (b * s + f) / e
-            if t < 0.0:
-                t = 0.0
-                s = min(1.0, max(0.0, -c / a))
-            elif t > 1.0:
-                t = 1.0
-                s = min(1.0, max(0.0, (b - c) / a))
-    return (p0x + s * d1x, p0y + s * d1y, p0z + s * d1z,
-            q0x + t * d2x, q0y + t * d2y, q0z + t * d2z)
-
-
-@njit(**INLINE)
 def _face_contact(geom, wpos, wrot, cr, fr, ci, vr, vi, flipped, margin, man, scratch):
     """Clip the incident face of ci against reference face fr (local) of cr. ``flipped``: the
     reference polytope is B, so the normal from A to B is minus the reference normal."""
@@ -275,49 +242,23 @@ def _face_contact(geom, wpos, wrot, cr, fr, ci, vr, vi, flipped, margin, man, sc
             best = d
             fi = f
     gi = fi0 + fi
-    poly_in = scratch.clip_in
-    poly_out = scratch.clip_out
-    id_in = scratch.id_in
-    id_out = scratch.id_out
     s0 = geom.face_vert_start[gi]
     n_poly = geom.face_vert_count[gi]
     for k in range(n_poly):
         v = geom.face_verts[s0 + k]
         for r in range(3):
-            poly_in[k, r] = vi[v, r]
-        id_in[k] = k & 0x7F
-    # clip against the side planes of the reference face: edge u -> w, outward side normal
-    # (w - u) x n (the face is counter-clockwise about n)
+            scratch.clip_in[k, r] = vi[v, r]
+        scratch.id_in[k] = k & 0x7F
     r0 = geom.face_vert_start[gr]
     m = geom.face_vert_count[gr]
-    for side in range(m):
-        if n_poly == 0:
-            break
-        u = geom.face_verts[r0 + side]
-        w = geom.face_verts[r0 + (side + 1) % m]
-        ex, ey, ez = vr[w, 0] - vr[u, 0], vr[w, 1] - vr[u, 1], vr[w, 2] - vr[u, 2]
-        sx, sy, sz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
-        so = sx * vr[u, 0] + sy * vr[u, 1] + sz * vr[u, 2]
-        n_out = 0
-        for k in range(n_poly):
-            k1 = (k + 1) % n_poly
-            d0 = sx * poly_in[k, 0] + sy * poly_in[k, 1] + sz * poly_in[k, 2] - so
-            d1 = sx * poly_in[k1, 0] + sy * poly_in[k1, 1] + sz * poly_in[k1, 2] - so
-            if d0 <= 0.0:
-                for r in range(3):
-                    poly_out[n_out, r] = poly_in[k, r]
-                id_out[n_out] = id_in[k]
-                n_out += 1
-            if (d0 <= 0.0) != (d1 <= 0.0):
-                t = d0 / (d0 - d1)
-                for r in range(3):
-                    poly_out[n_out, r] = poly_in[k, r] + t * (poly_in[k1, r] - poly_in[k, r])
-                # a crossing: the side, and whether the polygon leaves or enters through it
-                id_out[n_out] = 0x80 | (0x40 if d0 <= 0.0 else 0) | (side & 0x3F)
-                n_out += 1
-        poly_in, poly_out = poly_out, poly_in
-        id_in, id_out = id_out, id_in
-        n_poly = n_out
+    for k in range(m):
+        v = geom.face_verts[r0 + k]
+        for r in range(3):
+            scratch.ref[k, r] = vr[v, r]
+    n_poly = clip_polygon(scratch.ref, m, nx, ny, nz, scratch.clip_in, scratch.id_in, n_poly,
+                          scratch.clip_out, scratch.id_out)
+    poly_in = scratch.clip_in
+    id_in = scratch.id_in
     if flipped:
         set_normal(man, -nx, -ny, -nz)
     else:
