@@ -30,6 +30,8 @@ FEATURE_ANGLE = 0.02  # rad, about 1.1 degrees
 COS_FEATURE = float(np.cos(FEATURE_ANGLE))
 SIN_FEATURE = float(np.sin(FEATURE_ANGLE))
 CAP_POINTS = 8  # rim points standing for a cylinder's cap in a manifold (all on the rim)
+# GJK's exact point joins the clipped points when it is deeper than all of them by this (m)
+EXACT_POINT_MARGIN = 1e-9
 
 
 @njit(**INLINE)
@@ -181,20 +183,25 @@ def _feature_manifold(geom, wpos, wrot, ca, cb, nx, ny, nz, margin, man, scratch
                              n_inc, scratch.clip_out, scratch.id_out)
     if count == 0:
         return 0
-    # depth of each incident point below the reference feature, along its normal m
+    # each incident point's gap to the reference feature's plane (normal m), measured along the
+    # contact normal n: the two surface points of a row are then the incident point and its
+    # shadow on the reference plane, both exact
     off = mx * scratch.ref[0, 0] + my * scratch.ref[0, 1] + mz * scratch.ref[0, 2]
+    mn = mx * nx + my * ny + mz * nz  # |mn| > cos(FEATURE_ANGLE)
     set_normal(man, nx, ny, nz)
     head = (1 << 24) if flipped else 0
     k_out = 0
     for k in range(count):
         px, py, pz = scratch.clip_in[k, 0], scratch.clip_in[k, 1], scratch.clip_in[k, 2]
-        gap = mx * px + my * py + mz * pz - off
-        if gap > margin or k_out >= MAX_CANDIDATES:
+        gap = (mx * px + my * py + mz * pz - off) / abs(mn)
+        if gap > margin or k_out >= MAX_CANDIDATES - 1:
             continue
-        put_point(man, k_out, px - 0.5 * gap * mx, py - 0.5 * gap * my, pz - 0.5 * gap * mz,
-                  -gap, head | (scratch.id_in[k] & 0xFF))
+        # half the gap towards the reference, along n (+n from B's points, -n from A's)
+        h = 0.5 * gap if flipped else -0.5 * gap
+        put_point(man, k_out, px + h * nx, py + h * ny, pz + h * nz, -gap,
+                  head | (scratch.id_in[k] & 0xFF))
         k_out += 1
-    return reduce_to_four(man, k_out)
+    return k_out
 
 
 @njit(**JIT)
@@ -219,16 +226,26 @@ def convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch):
         gap = -core_depth - ra - rb
     else:
         ax, ay, az, bx, by, bz = witnesses(gs, lam, n)
-        nx, ny, nz = (bx - ax) / dist, (by - ay) / dist, (bz - az) / dist
+        nx, ny, nz = bx - ax, by - ay, bz - az
+        ln = np.sqrt(nx * nx + ny * ny + nz * nz)
+        nx, ny, nz = nx / ln, ny / ln, nz / ln
         gap = dist - ra - rb
     if gap > margin:
         return 0
+    # witnesses back in world coordinates
+    ax, ay, az = ax + wpos[ca, 0], ay + wpos[ca, 1], az + wpos[ca, 2]
+    bx, by, bz = bx + wpos[ca, 0], by + wpos[ca, 1], bz + wpos[ca, 2]
     count = _feature_manifold(geom, wpos, wrot, ca, cb, nx, ny, nz, margin, man, scratch)
-    if count > 0:
-        return count
-    set_normal(man, nx, ny, nz)
-    # surface points a + ra n and b - rb n: midway
-    h = 0.5 * (ra - rb)
-    put_point(man, 0, 0.5 * (ax + bx) + h * nx, 0.5 * (ay + by) + h * ny,
-              0.5 * (az + bz) + h * nz, -gap, 0)
-    return 1
+    # GJK's / EPA's own point, exact: the manifold's deepest unless a clipped point is as deep
+    # (a cap's rim points are samples of the rim; the deepest rim point may lie between them)
+    deepest = -np.inf
+    for k in range(count):
+        deepest = max(deepest, man.depth[k])
+    if count == 0 or -gap > deepest + EXACT_POINT_MARGIN:
+        set_normal(man, nx, ny, nz)
+        # surface points a + ra n and b - rb n: midway
+        h = 0.5 * (ra - rb)
+        put_point(man, count, 0.5 * (ax + bx) + h * nx, 0.5 * (ay + by) + h * ny,
+                  0.5 * (az + bz) + h * nz, -gap, 0xFF)
+        count += 1
+    return reduce_to_four(man, count)

@@ -27,10 +27,12 @@ from crosscheck.sim.collide.geometry import BOX, CAPSULE, CYLINDER, SPHERE
 
 GJK_MAX_ITER = 64
 GJK_REL_TOL = 1e-12  # stop when the support no longer improves the distance by this (relative)
-EPA_MAX_ITER = 96
+EPA_MAX_ITER = 128
 EPA_TOL = 1e-9  # m: the nearest face is within this of the Minkowski difference's surface
 EPA_MAX_VERTS = EPA_MAX_ITER + 8
-EPA_MAX_FACES = 2 * EPA_MAX_VERTS + 8
+# a closed triangulated surface of V vertices has 2 V - 4 faces; the horizon's new faces are added
+# before the dead ones are dropped, hence the slack
+EPA_MAX_FACES = 4 * EPA_MAX_VERTS
 
 
 class GjkScratch(NamedTuple):
@@ -63,11 +65,14 @@ def core_radius(geom, c):
 
 
 @njit(**JIT)
-def support_core(geom, wpos, wrot, c, dx, dy, dz):
-    """A point of collider c's core farthest along the world direction d (any maximiser)."""
+def support_core(geom, wpos, wrot, c, dx, dy, dz, ox, oy, oz):
+    """A point of collider c's core farthest along the world direction d (any maximiser),
+    relative to the point o: GJK works about A's frame origin, so that bodies far from the
+    world origin (1e4 m) lose no digits to their position."""
     k = geom.kind[c]
+    px, py, pz = wpos[c, 0] - ox, wpos[c, 1] - oy, wpos[c, 2] - oz
     if k == SPHERE:
-        return wpos[c, 0], wpos[c, 1], wpos[c, 2]
+        return px, py, pz
     # d in the shape frame: R^T d
     lx = wrot[c, 0, 0] * dx + wrot[c, 1, 0] * dy + wrot[c, 2, 0] * dz
     ly = wrot[c, 0, 1] * dx + wrot[c, 1, 1] * dy + wrot[c, 2, 1] * dz
@@ -94,16 +99,18 @@ def support_core(geom, wpos, wrot, c, dx, dy, dz):
             if s > best:
                 best = s
                 sx, sy, sz = geom.vertices[v, 0], geom.vertices[v, 1], geom.vertices[v, 2]
-    return (wpos[c, 0] + wrot[c, 0, 0] * sx + wrot[c, 0, 1] * sy + wrot[c, 0, 2] * sz,
-            wpos[c, 1] + wrot[c, 1, 0] * sx + wrot[c, 1, 1] * sy + wrot[c, 1, 2] * sz,
-            wpos[c, 2] + wrot[c, 2, 0] * sx + wrot[c, 2, 1] * sy + wrot[c, 2, 2] * sz)
+    return (px + wrot[c, 0, 0] * sx + wrot[c, 0, 1] * sy + wrot[c, 0, 2] * sz,
+            py + wrot[c, 1, 0] * sx + wrot[c, 1, 1] * sy + wrot[c, 1, 2] * sz,
+            pz + wrot[c, 2, 0] * sx + wrot[c, 2, 1] * sy + wrot[c, 2, 2] * sz)
 
 
 @njit(**INLINE)
 def _support_into(geom, wpos, wrot, ca, cb, dx, dy, dz, s, k):
-    """Slot k of the scratch: w = sA(d) - sB(-d), with the two support points."""
-    ax, ay, az = support_core(geom, wpos, wrot, ca, dx, dy, dz)
-    bx, by, bz = support_core(geom, wpos, wrot, cb, -dx, -dy, -dz)
+    """Slot k of the scratch: w = sA(d) - sB(-d), with the two support points (relative to A's
+    frame origin)."""
+    ox, oy, oz = wpos[ca, 0], wpos[ca, 1], wpos[ca, 2]
+    ax, ay, az = support_core(geom, wpos, wrot, ca, dx, dy, dz, ox, oy, oz)
+    bx, by, bz = support_core(geom, wpos, wrot, cb, -dx, -dy, -dz, ox, oy, oz)
     s.pa[k, 0], s.pa[k, 1], s.pa[k, 2] = ax, ay, az
     s.pb[k, 0], s.pb[k, 1], s.pb[k, 2] = bx, by, bz
     s.w[k, 0], s.w[k, 1], s.w[k, 2] = ax - bx, ay - by, az - bz
@@ -315,7 +322,8 @@ def gjk(geom, wpos, wrot, ca, cb, s, lam):
 
 @njit(**INLINE)
 def witnesses(s, lam, n):
-    """The closest points on A's and B's cores from the final simplex's weights."""
+    """The closest points on A's and B's cores from the final simplex's weights, relative to A's
+    frame origin."""
     ax, ay, az, bx, by, bz = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for k in range(n):
         ax += lam[k] * s.pa[k, 0]
@@ -396,10 +404,10 @@ def _complete_simplex(geom, wpos, wrot, ca, cb, s, n, scale):
 
 @njit(**JIT)
 def epa(geom, wpos, wrot, ca, cb, s, n, scale):
-    """Penetration of the overlapping cores: (depth, nx, ny, nz, witness on A, witness on B), the
-    normal from A to B (B moved by depth along it separates the cores). ``n``: GJK's simplex size
-    (4, or fewer when the cores touch). depth < 0 means the difference was flat (no volume):
-    the caller falls back to a zero-depth contact."""
+    """Penetration of the overlapping cores: (depth, nx, ny, nz, witness on A, witness on B; both
+    relative to A's frame origin), the normal from A to B (B moved by depth along it separates
+    the cores). ``n``: GJK's simplex size (4, or fewer when the cores touch). depth < 0 means
+    the difference was flat (no volume): the caller falls back to a zero-depth contact."""
     if n < 4:
         n = _complete_simplex(geom, wpos, wrot, ca, cb, s, n, scale)
         if n < 4:
@@ -424,7 +432,7 @@ def epa(geom, wpos, wrot, ca, cb, s, n, scale):
         if best < 0:
             break
         nx, ny, nz = s.face_n[best, 0], s.face_n[best, 1], s.face_n[best, 2]
-        if n_verts >= EPA_MAX_VERTS or n_faces + 2 * n_verts >= EPA_MAX_FACES:
+        if n_verts >= EPA_MAX_VERTS or n_faces + 2 * n_verts + 8 >= EPA_MAX_FACES:
             break
         _support_into(geom, wpos, wrot, ca, cb, nx, ny, nz, s, n_verts)
         if _dot(s, n_verts, nx, ny, nz) - dist <= EPA_TOL:
@@ -458,9 +466,28 @@ def epa(geom, wpos, wrot, ca, cb, s, n, scale):
                     s.edges[n_edges, 0] = a
                     s.edges[n_edges, 1] = b
                     n_edges += 1
+        # drop the dead faces, then add the new ones on the horizon
+        kept = 0
+        for f in range(n_faces):
+            if s.alive[f]:
+                if kept != f:
+                    for r in range(3):
+                        s.faces[kept, r] = s.faces[f, r]
+                    for r in range(4):
+                        s.face_n[kept, r] = s.face_n[f, r]
+                    s.alive[kept] = True
+                kept += 1
+        n_faces = kept
         for h in range(n_edges):
             _set_face(s, n_faces, s.edges[h, 0], s.edges[h, 1], w, cx, cy, cz)
             n_faces += 1
+    # the nearest face of the final polytope (the loop may have ended after a compaction)
+    best = -1
+    dist = np.inf
+    for f in range(n_faces):
+        if s.alive[f] and s.face_n[f, 3] < dist:
+            dist = s.face_n[f, 3]
+            best = f
     if best < 0:
         return -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     # the origin's projection on the nearest face, in barycentric weights of its corners

@@ -32,13 +32,14 @@ from crosscheck.sim.collide.manifold import MAX_CANDIDATES, put_point, reduce_to
 from crosscheck.sim.collide.narrow3d import segment_segment
 
 # An edge axis is taken over a face axis when it separates by more than this (absolute m, plus a
-# fraction of the face separation's size): ties go to the faces, whose manifolds are stable.
-EDGE_BIAS_ABS = 1e-6
-EDGE_BIAS_REL = 0.05
-# Reference face: A's unless B's separates by more than this (same form): a deterministic choice
-# that does not flip between A and B on round-off.
-FACE_BIAS_ABS = 1e-6
-FACE_BIAS_REL = 0.02
+# fraction of the face separation's size): ties go to the faces, whose manifolds are stable. The
+# price: near a tie the depth reported can exceed the least penetration by up to this much.
+EDGE_BIAS_ABS = 1e-5
+EDGE_BIAS_REL = 0.005
+# Reference face: A's unless B's separates by more than this (same form): a choice that does not
+# flip between A and B on round-off, at the same price.
+FACE_BIAS_ABS = 1e-5
+FACE_BIAS_REL = 0.005
 # Parallel edges: their cross product is below this (relative to the edge lengths) and the face
 # axes cover them.
 PARALLEL = 1e-6
