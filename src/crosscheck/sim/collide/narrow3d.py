@@ -303,6 +303,17 @@ def plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, feature):
     return k + 1
 
 
+@njit(**INLINE)
+def plane_sphere(plane_normal, plane_offset, wpos, size, c, g, margin, man):
+    """Sphere collider c against plane g: its lowest point (the plane collider's sphere case, for
+    the detection loop, with arrays only)."""
+    nx, ny, nz = plane_normal[g, 0], plane_normal[g, 1], plane_normal[g, 2]
+    r = size[c, 0]
+    set_normal(man, -nx, -ny, -nz)
+    return plane_point(man, 0, nx, ny, nz, plane_offset[g], wpos[c, 0] - r * nx,
+                       wpos[c, 1] - r * ny, wpos[c, 2] - r * nz, margin, 0)
+
+
 @njit(**JIT)
 def plane_collider(geom, wpos, wrot, c, g, margin, man):
     """Collider c (a body) against ground plane g: its support points nearest the plane, each a
