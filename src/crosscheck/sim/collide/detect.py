@@ -52,7 +52,7 @@ from crosscheck.sim.collide.narrow3d import (
     sphere_cylinder,
     sphere_sphere,
 )
-from crosscheck.sim.collide.polytope3d import PolytopeScratch, polytope_polytope
+from crosscheck.sim.collide.polytope3d import new_polytope_scratch, polytope_polytope
 from crosscheck.sim.collide.pose import (
     bounding_boxes2d,
     bounding_boxes3d,
@@ -179,11 +179,8 @@ def detect3d(geom, x, q, contacts):
     bounding_boxes3d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    m = 2 * max(geom.max_face_verts, CAP_POINTS) + 4
-    scratch = PolytopeScratch(np.zeros((geom.max_poly_verts, 3)),
-                              np.zeros((geom.max_poly_verts, 3)), np.zeros((m, 3)),
-                              np.zeros((m, 3)), np.zeros(m, np.int64), np.zeros(m, np.int64),
-                              np.zeros((m, 3)))
+    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces,
+                                   2 * max(geom.max_face_verts, CAP_POINTS) + 4)
     gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
                     np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
                     np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),

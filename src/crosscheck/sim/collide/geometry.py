@@ -86,6 +86,7 @@ class Geometry3D(NamedTuple):
     pair_collide: np.ndarray  # (K, K) bool
     max_poly_verts: int  # the largest polytope's vertex count (scratch sizes)
     max_face_verts: int  # the largest face's vertex count
+    max_poly_faces: int  # the largest polytope's face count
     # The broad phase's cache, the one thing detection writes here: the sweep order of the last
     # call and its axis (-1: none yet). It changes the cost of the next sort, never a result.
     sweep_order: np.ndarray  # (C,) int64
@@ -250,6 +251,7 @@ def _compile3d(scene: Scene, margin: float) -> Geometry3D:
         pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
         max_poly_verts=max([len(p.vertices) for p in polys], default=1),
         max_face_verts=max([len(f) for p in polys for f in p.faces], default=1),
+        max_poly_faces=max([len(p.faces) for p in polys], default=1),
         **_sweep_cache(c))
 
 

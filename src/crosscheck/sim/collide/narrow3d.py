@@ -340,9 +340,10 @@ def plane_collider(geom, wpos, wrot, c, g, margin, man):
     else:  # box, hull: every vertex within the margin
         p = geom.polytope[c]
         v0 = geom.poly_vert_start[p]
+        vertices = geom.vertices
         for v in range(geom.poly_vert_count[p]):
-            px, py, pz = to_world(wpos, wrot, c, geom.vertices[v0 + v, 0],
-                                  geom.vertices[v0 + v, 1], geom.vertices[v0 + v, 2])
+            px, py, pz = to_world(wpos, wrot, c, vertices[v0 + v, 0], vertices[v0 + v, 1],
+                                  vertices[v0 + v, 2])
             if k < MAX_CANDIDATES:
                 k = plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, v)
             else:
