@@ -13,8 +13,10 @@ Scenes (built directly as Scenes; the geometry is what a case with these bodies 
 
 Each step detects on a new state: every body moves by a random walk of 0.1 mm and turns by
 1 mrad per step, so the broad phase's insertion sort has work to do, as in a simulation. Timed:
-``detect3d`` over ``--steps`` states, best of ``--repeats`` (the machine is shared; the load
-average is recorded). Also timed: the broad phase alone, sweep and prune against brute force.
+``detect3d`` over ``--steps`` states called from compiled code (as a contact model calls it), and
+the same called once per step from Python; best of ``--repeats`` (the machine is shared; the
+load average is recorded). Also timed: the broad phase alone, sweep and prune against brute
+force.
 
 Writes ``benchmarks/results/collide.json`` and ``benchmarks/results/collide.md``.
 """
@@ -31,6 +33,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +43,11 @@ from collide_scenes import body, scene, state3d, static  # noqa: E402
 
 from crosscheck.scene.shapes import Box, Sphere  # noqa: E402
 from crosscheck.sim.collide import compile_geometry, detect3d, new_contacts  # noqa: E402
-from crosscheck.sim.collide.broadphase import brute_force_pairs, sweep_and_prune  # noqa: E402
+from crosscheck.sim.collide.broadphase import (  # noqa: E402
+    brute_force_pairs,
+    grid_pairs,
+    sweep_and_prune,
+)
 from crosscheck.sim.collide.pose import bounding_boxes3d, world_poses3d  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
@@ -82,6 +89,14 @@ def box_stacks(n: int, rng):
     return scene(bodies, ground=([0, 0, 1], 0.0))
 
 
+@njit(cache=False)
+def detect_steps(g, xs, qs, c, rows):
+    """detect3d on every state, from compiled code (as a contact model calls it)."""
+    for k in range(xs.shape[0]):
+        detect3d(g, xs[k], qs[k], c)
+        rows[k] = c.count[0]
+
+
 def states(sc, steps: int, rng):
     """A random walk of the bodies: 0.1 mm and 1 mrad per step."""
     x0, q0 = state3d(sc)
@@ -92,37 +107,50 @@ def states(sc, steps: int, rng):
         q = (turn * Rotation.from_quat(qs[-1][:, [1, 2, 3, 0]])).as_quat()[:, [3, 0, 1, 2]]
         xs.append(np.ascontiguousarray(x))
         qs.append(np.ascontiguousarray(q))
-    return xs, qs
+    return np.ascontiguousarray(xs), np.ascontiguousarray(qs)
 
 
 def time_detection(sc, steps, repeats, rng):
-    g = compile_geometry(sc)
-    c = new_contacts(g)
     xs, qs = states(sc, steps, rng)
-    detect3d(g, xs[0], qs[0], c)  # compile (or load the cache) and warm the sweep order
+    out = {}
+    for method in ("grid", "sweep"):
+        out[method] = _time_method(sc, method, xs, qs, steps, repeats)
+    return out
+
+
+def _time_method(sc, method, xs, qs, steps, repeats):
+    g = compile_geometry(sc, broadphase=method)
+    c = new_contacts(g)
+    rows = np.zeros(steps, np.int64)
+    detect_steps(g, xs[:2], qs[:2], c, rows)  # compile (or load the cache)
     best = np.inf
-    rows = []
     for _ in range(repeats):
         t = time.perf_counter()
-        for x, q in zip(xs, qs, strict=True):
-            detect3d(g, x, q, c)
-            rows.append(c.n)
+        detect_steps(g, xs, qs, c, rows)
         best = min(best, (time.perf_counter() - t) / steps)
         if c.overflowed():
             raise RuntimeError("contact buffer overflow in the benchmark")
+    # the same from Python, one call per step (what a caller outside numba pays on top)
+    best_py = np.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for k in range(steps):
+            detect3d(g, xs[k], qs[k], c)
+        best_py = min(best_py, (time.perf_counter() - t) / steps)
     # the broad phase alone, on the first state
     nc = len(g.kind)
     wpos, wrot = np.empty((nc, 3)), np.empty((nc, 3, 3))
     lo, hi = np.empty((nc, 3)), np.empty((nc, 3))
     world_poses3d(g, xs[0], qs[0], wpos, wrot)
     bounding_boxes3d(g, wpos, wrot, 0.5 * g.margin, lo, hi)
-    buf = np.empty((16, 2), np.int64)
-    sap, n_pairs = _best(lambda: sweep_and_prune(g, lo, hi, buf), repeats)
+    buf = np.empty((64 * nc, 2), np.int64)
+    find = grid_pairs if method == "grid" else sweep_and_prune
+    alone, n_pairs = _best(lambda: find(g, lo, hi, buf), repeats)
     brute, n_brute = _best(lambda: brute_force_pairs(g, lo, hi, buf), max(1, repeats // 2))
     assert n_pairs == n_brute
     return {"bodies": len(sc.bodies), "colliders": nc, "detect_s": best,
-            "rows_mean": float(np.mean(rows)), "pairs": int(n_pairs), "sweep_s": sap,
-            "brute_force_s": brute}
+            "detect_python_s": best_py, "rows_mean": float(np.mean(rows)),
+            "pairs": int(n_pairs), "broad_phase_s": alone, "brute_force_s": brute}
 
 
 def _best(fn, repeats):
@@ -133,7 +161,7 @@ def _best(fn, repeats):
         t = time.perf_counter()
         out = fn()
         best = min(best, time.perf_counter() - t)
-    return best, out[1]
+    return best, out
 
 
 def main(argv=None):
@@ -147,13 +175,12 @@ def main(argv=None):
     rng = np.random.default_rng(0)
     load0 = os.getloadavg()[0]
     results = []
-    for n in args.sizes:
-        r = time_detection(sphere_pile(n, rng), args.steps, args.repeats, rng)
-        results.append({"scene": f"spheres {n}", **r})
-        print(results[-1], flush=True)
-    r = time_detection(box_stacks(args.boxes, rng), args.steps, args.repeats, rng)
-    results.append({"scene": f"boxes {args.boxes}", **r})
-    print(results[-1], flush=True)
+    scenes = [(f"spheres {n}", sphere_pile(n, rng)) for n in args.sizes]
+    scenes.append((f"boxes {args.boxes}", box_stacks(args.boxes, rng)))
+    for name, sc in scenes:
+        for method, r in time_detection(sc, args.steps, args.repeats, rng).items():
+            results.append({"scene": name, "broadphase": method, **r})
+            print(results[-1], flush=True)
     load1 = os.getloadavg()[0]
     meta = {"recorded": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": platform.machine(),
             "cores": os.cpu_count(), "numba": numba.__version__, "steps": args.steps,
@@ -174,25 +201,29 @@ def report(meta, results) -> str:
         "machine is shared: absolute figures move from run to run). Generated by "
         "`benchmarks/bench_collide.py`; the scenes are described there.",
         "",
-        "| scene | bodies | contact rows | pairs (broad phase) | detect per step | per body "
-        "| sweep and prune | brute force |",
-        "|---|---|---|---|---|---|---|---|",
+        "| scene | broad phase | bodies | contact rows | pairs | detect per step | per body "
+        "| from Python | broad phase alone | brute force pairs |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         lines.append(
-            f"| {r['scene']} | {r['bodies']} | {r['rows_mean']:.0f} | {r['pairs']} | "
-            f"{r['detect_s'] * 1e3:.3f} ms | {r['detect_s'] / r['bodies'] * 1e6:.2f} us | "
-            f"{r['sweep_s'] * 1e3:.3f} ms | {r['brute_force_s'] * 1e3:.2f} ms |")
-    spheres = [r for r in results if r["scene"].startswith("spheres")]
-    if len(spheres) >= 2:
-        a, b = spheres[0], spheres[-1]
-        lines += [
-            "",
-            f"Growth from {a['bodies']} to {b['bodies']} spheres ({b['bodies'] / a['bodies']:.0f}x"
-            f" the bodies): detection {b['detect_s'] / a['detect_s']:.1f}x, sweep and prune "
-            f"{b['sweep_s'] / a['sweep_s']:.1f}x, brute force "
-            f"{b['brute_force_s'] / a['brute_force_s']:.0f}x.",
-        ]
+            f"| {r['scene']} | {r['broadphase']} | {r['bodies']} | {r['rows_mean']:.0f} | "
+            f"{r['pairs']} | {r['detect_s'] * 1e3:.3f} ms | "
+            f"{r['detect_s'] / r['bodies'] * 1e6:.2f} us | {r['detect_python_s'] * 1e3:.3f} ms | "
+            f"{r['broad_phase_s'] * 1e3:.3f} ms | {r['brute_force_s'] * 1e3:.2f} ms |")
+    for method in ("grid", "sweep"):
+        spheres = [r for r in results
+                   if r["scene"].startswith("spheres") and r["broadphase"] == method]
+        if len(spheres) >= 2:
+            a, b = spheres[0], spheres[-1]
+            lines += [
+                "",
+                f"{method}: from {a['bodies']} to {b['bodies']} spheres "
+                f"({b['bodies'] / a['bodies']:.0f}x the bodies): detection "
+                f"{b['detect_s'] / a['detect_s']:.1f}x, broad phase alone "
+                f"{b['broad_phase_s'] / a['broad_phase_s']:.1f}x, brute force "
+                f"{b['brute_force_s'] / a['brute_force_s']:.0f}x.",
+            ]
     return "\n".join(lines) + "\n"
 
 

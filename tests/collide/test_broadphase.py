@@ -1,16 +1,18 @@
-"""Sweep and prune against brute force on random scenes (3D and 2D), across steps that reuse the
-previous order, an axis change, statics and collide = false."""
+"""Both broad phases (uniform grid, sweep and prune) against brute force on random scenes (3D and
+2D), across steps that reuse the previous order, big moves, an axis change, large statics and
+bodies kept out of the grid, and collide = false."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from collide_scenes import STEEL, body, scene, state2d, state3d, static
 from scipy.spatial.transform import Rotation
 
 from crosscheck.scene.model import Material
 from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Polygon, Sphere
 from crosscheck.sim.collide import compile_geometry
-from crosscheck.sim.collide.broadphase import brute_force_pairs, sweep_and_prune
+from crosscheck.sim.collide.broadphase import brute_force_pairs, grid_pairs, sweep_and_prune
 from crosscheck.sim.collide.pose import (
     bounding_boxes2d,
     bounding_boxes3d,
@@ -36,6 +38,17 @@ def random_scene3d(rng, n, spread):
     return scene(bodies, statics, overrides=overrides)
 
 
+def found(find, g, lo, hi):
+    """(pairs, count) of a broad-phase function, on an array it fits in (a second run when the
+    first array was too small, as broad_phase does)."""
+    buf = np.empty((64, 2), np.int64)
+    n = find(g, lo, hi, buf)
+    if n > len(buf):
+        buf = np.empty((n, 2), np.int64)
+        assert find(g, lo, hi, buf) == n
+    return buf, n
+
+
 def pair_set(pairs, n):
     return {(int(pairs[k, 0]), int(pairs[k, 1])) for k in range(n)}
 
@@ -49,22 +62,27 @@ def boxes3d(g, x, q):
     return lo, hi
 
 
-def test_sweep_and_prune_matches_brute_force_3d_over_steps():
+METHODS = {"grid": grid_pairs, "sweep": sweep_and_prune}
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_broad_phase_matches_brute_force_3d_over_steps(method):
     rng = np.random.default_rng(1)
     sc = random_scene3d(rng, 300, 1.5)
-    g = compile_geometry(sc)
+    find = METHODS[method]
+    g = compile_geometry(sc, broadphase=method)
     x, q = state3d(sc)
     for step in range(12):
         lo, hi = boxes3d(g, x, q)
-        expected, ne = brute_force_pairs(g, lo, hi, np.empty((16, 2), np.int64))
-        got, ng = sweep_and_prune(g, lo, hi, np.empty((16, 2), np.int64))
+        expected, ne = found(brute_force_pairs, g, lo, hi)
+        got, ng = found(find, g, lo, hi)
         assert ng == len(pair_set(got, ng))  # no pair twice
         assert pair_set(got, ng) == pair_set(expected, ne)
         assert ne > 50
         assert (1, 4) not in pair_set(got, ng)
         # the same state on a fresh geometry (no previous order): the same pairs in the same order
-        fresh = compile_geometry(sc)
-        again, na = sweep_and_prune(fresh, lo, hi, np.empty((16, 2), np.int64))
+        fresh = compile_geometry(sc, broadphase=method)
+        again, na = found(find, fresh, lo, hi)
         np.testing.assert_array_equal(again[:na], got[:ng])
         # small moves (the order is nearly kept), then a big one (it is not)
         x = x + rng.normal(scale=0.3 if step == 6 else 0.01, size=x.shape)
@@ -72,14 +90,18 @@ def test_sweep_and_prune_matches_brute_force_3d_over_steps():
             x = x * np.array([0.1, 1.0, 3.0])  # the axis of largest spread changes to z
 
 
-def test_sweep_and_prune_matches_brute_force_2d():
+@pytest.mark.parametrize("method", list(METHODS))
+def test_broad_phase_matches_brute_force_2d(method):
     rng = np.random.default_rng(2)
     tri = Polygon(np.array([[0.0, 0.0], [0.2, 0.0], [0.0, 0.15]]))
     shapes = [Circle(0.1), Box(np.array([0.2, 0.1])), tri]
     bodies = [body(f"b{i}", shapes[i % 3], rng.uniform(-2, 2, 2), [rng.uniform(-3, 3)])
               for i in range(400)]
+    # a long floor (out of the grid) and a big body among small ones
+    bodies.append(body("plank", Box(np.array([3.0, 0.1])), [0.0, 0.0], [0.3]))
     sc = scene(bodies, [static("floor", Box(np.array([5.0, 0.2])), [0.0, -2.2])], dimension=2)
-    g = compile_geometry(sc)
+    g = compile_geometry(sc, broadphase=method)
+    assert len(g.grid_big) == 2
     x, a = state2d(sc)
     c = len(g.kind)
     for _ in range(5):
@@ -87,8 +109,8 @@ def test_sweep_and_prune_matches_brute_force_2d():
         lo, hi = np.empty((c, 2)), np.empty((c, 2))
         world_poses2d(g, x, a, wpos, wrot)
         bounding_boxes2d(g, wpos, wrot, 0.5 * g.margin, lo, hi)
-        expected, ne = brute_force_pairs(g, lo, hi, np.empty((16, 2), np.int64))
-        got, ng = sweep_and_prune(g, lo, hi, np.empty((16, 2), np.int64))
+        expected, ne = found(brute_force_pairs, g, lo, hi)
+        got, ng = found(METHODS[method], g, lo, hi)
         assert pair_set(got, ng) == pair_set(expected, ne)
         assert ne > 50
         x = x + rng.normal(scale=0.02, size=x.shape)

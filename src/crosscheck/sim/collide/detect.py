@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
-from crosscheck.sim.collide.broadphase import box_reaches_plane, sweep_and_prune
+from crosscheck.sim.collide.broadphase import box_reaches_plane, broad_phase
 from crosscheck.sim.collide.contacts import Contacts
 from crosscheck.sim.collide.convex3d import CAP_POINTS, convex_convex
 from crosscheck.sim.collide.geometry import (
@@ -64,6 +64,9 @@ from crosscheck.sim.collide.pose import (
 # (three rows of its own) and a box resting on boxes has 4-point manifolds above and below.
 ROWS_PER_BODY_3D = 16
 ROWS_PER_BODY_2D = 8
+# Broad-phase pairs per collider the first try holds (a dense pile of spheres has about 12; more
+# costs a second broad-phase pass, never a loss)
+PAIRS_PER_COLLIDER = 16
 
 
 def contact_capacity(geometry: Geometry3D | Geometry2D) -> int:
@@ -186,7 +189,8 @@ def detect3d(geom, x, q, contacts):
                     np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),
                     np.zeros((3 * EPA_MAX_FACES, 2), np.int64))
     lam = np.zeros(4)
-    pairs, n_pairs = sweep_and_prune(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
+    pairs, n_pairs = broad_phase(geom, lo, hi, np.empty((PAIRS_PER_COLLIDER * c + 16, 2),
+                                                         np.int64))
     needed = _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi, scratch,
                                  gs, lam)
     contacts.needed[0] = needed
@@ -295,7 +299,8 @@ def detect2d(geom, x, angle, contacts):
     bounding_boxes2d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(2), np.zeros((MAX_CANDIDATES, 2)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    pairs, n_pairs = sweep_and_prune(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
+    pairs, n_pairs = broad_phase(geom, lo, hi, np.empty((PAIRS_PER_COLLIDER * c + 16, 2),
+                                                         np.int64))
     needed = _pairs_and_planes2d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi)
     contacts.needed[0] = needed
     contacts.count[0] = min(needed, contacts.a.shape[0])
