@@ -21,6 +21,8 @@ from crosscheck.sim.collide.polytope3d import EDGE_BIAS_ABS, EDGE_BIAS_REL
 
 MARGIN = 5e-3
 FAR = np.array([1e4, -1e4, 1e4])
+DEEP = 0.02
+DEEP_SLACK = 0.01
 
 
 def quat(rot: Rotation) -> np.ndarray:
@@ -82,7 +84,13 @@ def check_rows(rows, sa, pa, qa, sb, pb, qb, tol, point_tol, b_index=1, bias=0.0
     assert abs(np.linalg.norm(n) - 1.0) < 1e-12
     deepest = max(r[4] for r in rows)
     along = float(gap_along(a, b, n)[0])
-    assert abs(deepest + along) <= normal_tol, (deepest, -along)
+    # Deep overlaps (beyond DEEP, a tenth of these shapes' size): a face manifold's deepest point
+    # can be shallower than the overlap along the normal (the deepest vertex lies outside the
+    # reference face and is clipped away, as in every SAT-and-clipping scheme), a feature
+    # manifold's a little deeper (a point's shadow on the reference plane falls beyond the face);
+    # allowed: DEEP_SLACK of the depth beyond DEEP. docs/inhouse.md states it.
+    slack = DEEP_SLACK * max(0.0, -along - DEEP)
+    assert abs(deepest + along) <= normal_tol + slack, (deepest, -along)
     assert deepest <= -ref + tol + bias, (deepest, -ref)
     assert along >= ref - normal_tol - bias, (along, ref)
     for ra, rb, nk, p, d in rows:
