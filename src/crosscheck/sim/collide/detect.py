@@ -45,6 +45,7 @@ from crosscheck.sim.collide.manifold import MAX_CANDIDATES, Manifold
 from crosscheck.sim.collide.narrow2d import circle_polygon, circles, line_collider, polygon_polygon
 from crosscheck.sim.collide.narrow3d import (
     capsule_capsule,
+    plane_box,
     plane_collider,
     plane_sphere,
     sphere_box,
@@ -182,7 +183,7 @@ def detect3d(geom, x, q, contacts):
     bounding_boxes3d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces,
+    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces, geom.max_poly_edges,
                                    2 * max(geom.max_face_verts, CAP_POINTS) + 4)
     gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
                     np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
@@ -254,6 +255,8 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
                 continue
             if kind[b] == SPHERE:
                 n = plane_sphere(plane_normal, plane_offset, wpos, size, b, g, margin, man)
+            elif kind[b] == BOX:
+                n = plane_box(plane_normal, plane_offset, wpos, wrot, size, b, g, margin, man)
             else:
                 n = plane_collider(geom, wpos, wrot, b, g, margin, man)
             if n > 0:

@@ -91,6 +91,7 @@ class Geometry3D(NamedTuple):
     max_poly_verts: int  # the largest polytope's vertex count (scratch sizes)
     max_face_verts: int  # the largest face's vertex count
     max_poly_faces: int  # the largest polytope's face count
+    max_poly_edges: int  # the largest polytope's edge count
     # The broad phase (broadphase.py): GRID or SWEEP, and its fields. The caches (the last call's
     # sort orders) are the one thing detection writes here: they change the cost of the next
     # sort, never a result.
@@ -272,6 +273,7 @@ def _compile3d(scene: Scene, margin: float, broadphase: str) -> Geometry3D:
         max_poly_verts=max([len(p.vertices) for p in polys], default=1),
         max_face_verts=max([len(f) for p in polys for f in p.faces], default=1),
         max_poly_faces=max([len(p.faces) for p in polys], default=1),
+        max_poly_edges=max([len(p.edges) for p in polys], default=1),
         **_broadphase_fields(bound, margin, broadphase))
 
 

@@ -314,6 +314,24 @@ def plane_sphere(plane_normal, plane_offset, wpos, size, c, g, margin, man):
                        wpos[c, 1] - r * ny, wpos[c, 2] - r * nz, margin, 0)
 
 
+@njit(**INLINE)
+def plane_box(plane_normal, plane_offset, wpos, wrot, size, c, g, margin, man):
+    """Box collider c against plane g: its corners within the margin, the four spanning the
+    largest area kept (plane_collider's box case, for the detection loop, with arrays only;
+    corner k has the signs of the bits of k, as the box's polytope numbers them)."""
+    nx, ny, nz = plane_normal[g, 0], plane_normal[g, 1], plane_normal[g, 2]
+    offset = plane_offset[g]
+    set_normal(man, -nx, -ny, -nz)
+    k = 0
+    for v in range(8):
+        sx = size[c, 0] if v & 4 else -size[c, 0]
+        sy = size[c, 1] if v & 2 else -size[c, 1]
+        sz = size[c, 2] if v & 1 else -size[c, 2]
+        px, py, pz = to_world(wpos, wrot, c, sx, sy, sz)
+        k = plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, v)
+    return reduce_to_four(man, k)
+
+
 @njit(**JIT)
 def plane_collider(geom, wpos, wrot, c, g, margin, man):
     """Collider c (a body) against ground plane g: its support points nearest the plane, each a

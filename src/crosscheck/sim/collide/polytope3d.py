@@ -58,15 +58,17 @@ class PolytopeScratch(NamedTuple):
     ref: np.ndarray  # (M, 3) the reference polygon
     na: np.ndarray  # (F, 4) world face planes of A: outward normal, offset
     nb: np.ndarray  # (F, 4) world face planes of B
+    eb: np.ndarray  # (E, 16) B's edges, what the edge query needs of each, computed once
 
 
 @njit(**JIT)
-def new_polytope_scratch(max_poly_verts, max_poly_faces, max_clip):
+def new_polytope_scratch(max_poly_verts, max_poly_faces, max_poly_edges, max_clip):
     m = max_clip
     return PolytopeScratch(np.zeros((max_poly_verts, 3)), np.zeros((max_poly_verts, 3)),
                            np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m, np.int64),
                            np.zeros(m, np.int64), np.zeros((m, 3)),
-                           np.zeros((max_poly_faces, 4)), np.zeros((max_poly_faces, 4)))
+                           np.zeros((max_poly_faces, 4)), np.zeros((max_poly_faces, 4)),
+                           np.zeros((max_poly_edges, 16)))
 
 
 # The routines below take the geometry's arrays, not the geometry: a NamedTuple handed to inlined
@@ -110,10 +112,26 @@ def _face_query(planes, nf, other_verts, n_other):
 
 
 @njit(**INLINE)
-def _edge_query(edge_verts, edge_faces, ea0, nea, eb0, neb, na, nb, va, vb, ox, oy, oz):
+def _edge_query(edge_verts, edge_faces, ea0, nea, eb0, neb, na, nb, va, vb, eb, ox, oy, oz):
     """The edge pair (local indices) whose axis separates most, and that separation; -inf when no
     pair spans a face of the Minkowski difference. (ox, oy, oz): an interior point of A, to orient
-    each axis away from A."""
+    each axis away from A. ``eb``: scratch for B's edges, filled here once per pair (the inner
+    loop then only reads)."""
+    for j in range(neb):
+        # B's normals negated (the Gauss map of -B): c, d, d x c; the edge's point, direction
+        fc, fd = edge_faces[eb0 + j, 0], edge_faces[eb0 + j, 1]
+        cx_, cy_, cz_ = -nb[fc, 0], -nb[fc, 1], -nb[fc, 2]
+        dx_, dy_, dz_ = -nb[fd, 0], -nb[fd, 1], -nb[fd, 2]
+        ib0, ib1 = edge_verts[eb0 + j, 0], edge_verts[eb0 + j, 1]
+        eb[j, 0], eb[j, 1], eb[j, 2] = cx_, cy_, cz_
+        eb[j, 3], eb[j, 4], eb[j, 5] = dx_, dy_, dz_
+        eb[j, 6] = dy_ * cz_ - dz_ * cy_
+        eb[j, 7] = dz_ * cx_ - dx_ * cz_
+        eb[j, 8] = dx_ * cy_ - dy_ * cx_
+        eb[j, 9], eb[j, 10], eb[j, 11] = vb[ib0, 0], vb[ib0, 1], vb[ib0, 2]
+        ex, ey, ez = vb[ib1, 0] - vb[ib0, 0], vb[ib1, 1] - vb[ib0, 1], vb[ib1, 2] - vb[ib0, 2]
+        eb[j, 12], eb[j, 13], eb[j, 14] = ex, ey, ez
+        eb[j, 15] = np.sqrt(ex * ex + ey * ey + ez * ez)
     best = -np.inf
     best_i = -1
     best_j = -1
@@ -129,34 +147,25 @@ def _edge_query(edge_verts, edge_faces, ea0, nea, eb0, neb, na, nb, va, vb, ox, 
         dxa, dya, dza = va[ia1, 0] - pxa, va[ia1, 1] - pya, va[ia1, 2] - pza
         la = np.sqrt(dxa * dxa + dya * dya + dza * dza)
         for j in range(neb):
-            # B's normals negated: the Gauss map of -B
-            fc, fd = edge_faces[eb0 + j, 0], edge_faces[eb0 + j, 1]
-            cx_, cy_, cz_ = -nb[fc, 0], -nb[fc, 1], -nb[fc, 2]
-            dx_, dy_, dz_ = -nb[fd, 0], -nb[fd, 1], -nb[fd, 2]
-            cba = cx_ * bax_ + cy_ * bay_ + cz_ * baz_
-            dba = dx_ * bax_ + dy_ * bay_ + dz_ * baz_
+            cba = eb[j, 0] * bax_ + eb[j, 1] * bay_ + eb[j, 2] * baz_
+            dba = eb[j, 3] * bax_ + eb[j, 4] * bay_ + eb[j, 5] * baz_
             if cba * dba >= 0.0:
                 continue
-            # d x c
-            dcx, dcy, dcz = dy_ * cz_ - dz_ * cy_, dz_ * cx_ - dx_ * cz_, dx_ * cy_ - dy_ * cx_
-            adc = ax_ * dcx + ay_ * dcy + az_ * dcz
-            bdc = bx_ * dcx + by_ * dcy + bz_ * dcz
+            adc = ax_ * eb[j, 6] + ay_ * eb[j, 7] + az_ * eb[j, 8]
+            bdc = bx_ * eb[j, 6] + by_ * eb[j, 7] + bz_ * eb[j, 8]
             if adc * bdc >= 0.0 or cba * bdc <= 0.0:
                 continue
-            ib0, ib1 = edge_verts[eb0 + j, 0], edge_verts[eb0 + j, 1]
-            pxb, pyb, pzb = vb[ib0, 0], vb[ib0, 1], vb[ib0, 2]
-            dxb, dyb, dzb = vb[ib1, 0] - pxb, vb[ib1, 1] - pyb, vb[ib1, 2] - pzb
-            lb = np.sqrt(dxb * dxb + dyb * dyb + dzb * dzb)
+            dxb, dyb, dzb = eb[j, 12], eb[j, 13], eb[j, 14]
             nx = dya * dzb - dza * dyb
             ny = dza * dxb - dxa * dzb
             nz = dxa * dyb - dya * dxb
             ln = np.sqrt(nx * nx + ny * ny + nz * nz)
-            if ln <= PARALLEL * la * lb:
+            if ln <= PARALLEL * la * eb[j, 15]:
                 continue
             nx, ny, nz = nx / ln, ny / ln, nz / ln
             if nx * (pxa - ox) + ny * (pya - oy) + nz * (pza - oz) < 0.0:
                 nx, ny, nz = -nx, -ny, -nz
-            s = nx * (pxb - pxa) + ny * (pyb - pya) + nz * (pzb - pza)
+            s = nx * (eb[j, 9] - pxa) + ny * (eb[j, 10] - pya) + nz * (eb[j, 11] - pza)
             if s > best:
                 best = s
                 best_i = i
@@ -191,7 +200,7 @@ def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch):
     ea0, eb0 = geom.poly_edge_start[pa], geom.poly_edge_start[pb]
     se, ei, ej, ex, ey, ez = _edge_query(geom.edge_verts, geom.edge_faces, ea0,
                                          geom.poly_edge_count[pa], eb0, geom.poly_edge_count[pb],
-                                         na, nb, va, vb, ox, oy, oz)
+                                         na, nb, va, vb, scratch.eb, ox, oy, oz)
     if se > margin:
         return 0
     face = max(sa, sb)
