@@ -74,6 +74,40 @@ def _contact_reason(integrator: str, model: str) -> str | None:
     return None
 
 
+def _model_parameters(source, field: str, model, value) -> dict[str, Any]:
+    """A case's table of parameters for one contact model, checked (CaseError otherwise)."""
+    from crosscheck.errors import CaseError
+
+    defaults = model.parameters
+    if not isinstance(value, dict):
+        raise CaseError(source, field, f"a table of {model.name}'s parameters, among "
+                        f"{sorted(defaults)}", value)
+    out = {}
+    for key, given in value.items():
+        where = f"{field}.{key}"
+        if key not in defaults:
+            raise CaseError(source, where, f"a parameter of {model.name}, one of "
+                            f"{sorted(defaults)}", f"unknown key {key!r}")
+        default = defaults[key][0]
+        if isinstance(default, bool):
+            ok = isinstance(given, bool)
+            kind = "true or false"
+        elif isinstance(default, int):
+            ok = isinstance(given, int) and not isinstance(given, bool)
+            kind = "an integer"
+        else:
+            ok = isinstance(given, (int, float)) and not isinstance(given, bool)
+            kind = "a number"
+            given = float(given) if ok else given
+        if not ok:
+            raise CaseError(source, where, f"{kind} ({defaults[key][1]})", given)
+        out[key] = given
+    if model.check is not None:
+        for key, expected in model.check(out):
+            raise CaseError(source, f"{field}.{key}", expected, out[key])
+    return out
+
+
 class InhouseEngine(EngineBase):
     name = "inhouse"
 
@@ -131,14 +165,33 @@ class InhouseEngine(EngineBase):
         self._options(scene)  # raises CaseError on an unknown key
 
     def _options(self, scene: Scene) -> dict[str, Any]:
+        """The case's [engine_options.inhouse]: ``runaway_factor`` and one table per contact
+        model, ``[engine_options.inhouse.<model>]``, with that model's parameters (the registry's
+        names, values of the defaults' types, ranges by the model's check). Anything else is a
+        CaseError naming the field and what was expected."""
         from crosscheck.errors import CaseError
+        from crosscheck.sim.rigid.contact_models import CONTACT_KERNELS
 
+        source = scene.source or scene.name
         raw = dict(scene.engine_options.get(self.name, {}))
-        unknown = sorted(set(raw) - set(OPTIONS))
+        known = sorted(set(OPTIONS) | set(CONTACT_KERNELS))
+        unknown = sorted(set(raw) - set(known))
         if unknown:
-            raise CaseError(scene.source or scene.name, f"engine_options.{self.name}",
-                            f"options among {sorted(OPTIONS)}", unknown)
-        return {k: OPTIONS[k](v) for k, v in raw.items()}
+            raise CaseError(source, f"engine_options.{self.name}.{unknown[0]}",
+                            f"one of the options {known} (contact models take a table of their "
+                            f"parameters)", f"unknown key {unknown[0]!r}")
+        out: dict[str, Any] = {}
+        for key, value in raw.items():
+            if key in OPTIONS:
+                out[key] = OPTIONS[key](value)
+                continue
+            out[key] = _model_parameters(source, f"engine_options.{self.name}.{key}",
+                                         CONTACT_KERNELS[key], value)
+        return out
+
+    def contact_parameters(self, scene: Scene, model: str) -> dict[str, Any]:
+        """The parameters a case sets for one contact model (the rest take their defaults)."""
+        return dict(self._options(scene).get(model, {}))
 
     def runaway_factor(self, scene: Scene) -> float:
         return self._options(scene).get("runaway_factor", super().runaway_factor(scene))
@@ -172,8 +225,9 @@ class InhouseSession:
         if model is not None:
             from crosscheck.sim.rigid.contact_models import get_contact_model
 
+            parameters = InhouseEngine().contact_parameters(scene, model)
             self.contact = get_contact_model(model).open(scene, self.sim.model,
-                                                         self.sim.integrator, {})
+                                                         self.sim.integrator, parameters)
         n, d = self.sim.model.n_bodies, self.sim.model.dimension
         r, w = (4, 3) if d == 3 else (1, 1)
         # Row layout: com (N d), orientation (N r), velocity (N d), angular velocity (N w).

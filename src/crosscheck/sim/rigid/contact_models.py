@@ -41,6 +41,8 @@ class ContactModel:
     # name -> (default value, "meaning, unit"): what [engine_options.inhouse] may set
     parameters: dict[str, tuple[Any, str]] = field(default_factory=dict)
     open: Callable[..., ContactStepper] | None = None
+    # parameters -> [(name, expected)] for values out of range (the adapter's CaseError)
+    check: Callable[[dict[str, Any]], list[tuple[str, str]]] | None = None
 
     @property
     def name(self) -> str:
@@ -51,12 +53,17 @@ CONTACT_KERNELS: dict[str, ContactModel] = {}
 
 
 def bind_contact_model(name: str, open: Callable[..., ContactStepper],
-                       parameters: dict[str, tuple[Any, str]] | None = None) -> ContactModel:
-    """Register the implementation of the crosscheck.names contact model ``name``."""
+                       parameters: dict[str, tuple[Any, str]] | None = None,
+                       check: Callable[[dict[str, Any]], list[tuple[str, str]]] | None = None
+                       ) -> ContactModel:
+    """Register the implementation of the crosscheck.names contact model ``name``: its
+    ``open``, its parameters (name -> (default, "meaning, unit"); a case sets them in
+    ``[engine_options.inhouse.<name>]``, checked against the defaults' types by the adapter) and
+    an optional ``check`` of their ranges."""
     info = contact_model_info("inhouse", name)  # KeyError for a name crosscheck.names lacks
     if name in CONTACT_KERNELS:
         raise ValueError(f"contact model {name!r} is already registered")
-    bound = ContactModel(info, dict(parameters or {}), open)
+    bound = ContactModel(info, dict(parameters or {}), open, check)
     CONTACT_KERNELS[name] = bound
     return bound
 
@@ -67,3 +74,7 @@ def get_contact_model(name: str) -> ContactModel:
     except KeyError:
         raise KeyError(f"the in-house contact model {name!r} is not implemented; implemented: "
                        f"{list(CONTACT_KERNELS)}") from None
+
+
+# The implementations register themselves on import (as integrators.py binds its kernels).
+from crosscheck.sim.rigid import velocity_models  # noqa: E402, F401
