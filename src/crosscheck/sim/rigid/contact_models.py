@@ -67,3 +67,14 @@ def get_contact_model(name: str) -> ContactModel:
     except KeyError:
         raise KeyError(f"the in-house contact model {name!r} is not implemented; implemented: "
                        f"{list(CONTACT_KERNELS)}") from None
+
+
+def _bind_force_and_event_models() -> None:
+    """penalty (force level, penalty.py) and impulse_lcp (event-driven, impulse_lcp.py)."""
+    from crosscheck.sim.rigid import impulse_lcp, penalty
+
+    bind_contact_model("penalty", penalty.open_penalty, penalty.PARAMETERS)
+    bind_contact_model("impulse_lcp", impulse_lcp.open_impulse_lcp, impulse_lcp.PARAMETERS)
+
+
+_bind_force_and_event_models()
