@@ -1,13 +1,14 @@
-"""The kernels are split by job across modules that inline each other's helpers; numba's on-disk
-cache stamps a function with its own file only, so sim/rigid/_jit.py stamps every kernel of the
-package with all of the package's sources. These tests check that the stamp is in force."""
+"""The kernels are split by job across modules that inline each other's helpers (within sim/rigid,
+and the contact models of sim/rigid call sim/collide); numba's on-disk cache stamps a function with
+its own file only, so sim/_jit.py stamps every kernel of both packages with all of their sources.
+These tests check that the stamp is in force."""
 
 from __future__ import annotations
 
 import os
 
+from crosscheck.sim import _jit
 from crosscheck.sim.rigid import (
-    _jit,
     explicit2d,
     explicit3d,
     forces2d,
@@ -46,12 +47,44 @@ def test_the_stamp_covers_every_kernel_module():
         assert os.path.basename(module.__file__) in names
 
 
+def test_the_stamp_covers_rigid_and_collide():
+    dirs = {os.path.basename(os.path.dirname(p)) for p in _jit.package_sources()}
+    assert dirs == {"rigid", "collide"}
+
+
+def test_the_old_import_path_still_works():
+    from crosscheck.sim.rigid import _jit as old
+
+    assert old.JIT is _jit.JIT and old.INLINE is _jit.INLINE
+
+
+def _copy_packages(tmp_path, monkeypatch):
+    dirs = []
+    for d in _jit.PACKAGE_DIRS:
+        copy = tmp_path / os.path.basename(d)
+        copy.mkdir()
+        for f in os.listdir(d):
+            if f.endswith(".py"):
+                (copy / f).write_bytes(open(os.path.join(d, f), "rb").read())
+        dirs.append(str(copy))
+    monkeypatch.setattr(_jit, "SIM_DIR", str(tmp_path))
+    monkeypatch.setattr(_jit, "PACKAGE_DIRS", tuple(dirs))
+    return tmp_path
+
+
 def test_an_edit_to_a_helper_module_changes_every_kernel_stamp(tmp_path, monkeypatch):
-    # A copy of the package with one helper file changed: the stamp (of every kernel) changes.
-    for path in _jit.package_sources():
-        (tmp_path / os.path.basename(path)).write_bytes(open(path, "rb").read())
-    monkeypatch.setattr(_jit, "PACKAGE_DIR", str(tmp_path))
+    # A copy of the packages with one helper file changed: the stamp (of every kernel) changes.
+    root = _copy_packages(tmp_path, monkeypatch)
     before = _jit.package_stamp()
-    helper = tmp_path / "math3d.py"
+    helper = root / "rigid" / "math3d.py"
+    helper.write_text(helper.read_text() + "\n# edited\n")
+    assert _jit.package_stamp() != before
+
+
+def test_an_edit_in_collide_changes_the_rigid_kernels_stamp(tmp_path, monkeypatch):
+    # The contact models of sim/rigid inline collision functions: an edit there must recompile.
+    root = _copy_packages(tmp_path, monkeypatch)
+    before = _jit.package_stamp()
+    helper = root / "collide" / "contacts.py"
     helper.write_text(helper.read_text() + "\n# edited\n")
     assert _jit.package_stamp() != before

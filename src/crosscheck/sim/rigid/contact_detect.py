@@ -11,19 +11,10 @@ from __future__ import annotations
 from numba import njit
 
 from crosscheck.sim.collide.contacts import Contacts
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE
 
-try:
-    from crosscheck.sim.collide.detect import detect2d as _collide2d
-    from crosscheck.sim.collide.detect import detect3d as _collide3d
-except ImportError:  # pragma: no cover - before the detection package is in
-    @njit(**JIT)
-    def _collide3d(geometry, x, q, buf):
-        raise ValueError("collision detection is not available")
-
-    @njit(**JIT)
-    def _collide2d(geometry, x, angle, buf):
-        raise ValueError("collision detection is not available")
+from crosscheck.sim.collide.detect import detect2d as _collide2d
+from crosscheck.sim.collide.detect import detect3d as _collide3d
 
 
 def compile_colliders(scene, margin: float, capacity: int = 0):

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE
+from crosscheck.sim._jit import INLINE
 
 EMPTY = np.iinfo(np.int64).min  # no feature takes this value (features are >= 0)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.forces2d import evaluate, state_scratch
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.forces3d import evaluate, force_scratch
 from crosscheck.sim.rigid.math3d import (
     normalize_quat,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.contact_forces import contact_wrench2d
 
 

@@ -31,7 +31,7 @@ SciPy once per step (a Python loop over *steps*, never over bodies).
 The compiled pieces (assembly, Jacobians, the backward rotation, the block-diagonal step) are
 here with the drivers; they call the force pass (forces3d / forces2d), the math (math3d) and
 the centre-of-mass drift of the splitting family (splitting3d). numba's cache of every kernel is
-stamped with the whole package's sources (_jit.py), so none can call a stale helper.
+stamped with the whole package's sources (sim/_jit.py), so none can call a stale helper.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.forces2d import evaluate as evaluate_2d
 from crosscheck.sim.rigid.forces2d import spring_ends as spring_ends_2d
 from crosscheck.sim.rigid.forces2d import state_scratch as state_scratch_2d

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 
 
 @njit(**INLINE)

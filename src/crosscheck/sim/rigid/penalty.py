@@ -52,7 +52,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.contact_detect import detect2d, detect3d
 from crosscheck.sim.rigid.contact_table import (
     FeatureTable,

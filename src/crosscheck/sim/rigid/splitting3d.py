@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.rigid._jit import INLINE, JIT
+from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.rigid.forces3d import evaluate, force_scratch, kinematics
 from crosscheck.sim.rigid.math3d import normalize_quats, quat_mul, quat_to_rotation, rotate_left
 

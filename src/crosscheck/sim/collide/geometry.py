@@ -1,0 +1,326 @@
+"""The scene's colliders compiled once into arrays the detection kernels read (and never write).
+
+One collider per body (collider ``i`` is body ``i``: its shape in the body frame, placed relative
+to the centre of mass), then one per static (a fixed world pose); the ground plane apart (a
+half-space, never in the broad phase). Shapes:
+
+* 3D: sphere, box, capsule, cylinder (exact: its own support, no polygonal stand-in) and mesh.
+  **A mesh collides as its convex hull**: a concave mesh (the L bracket's notch) is filled in for
+  contact. Boxes and hulls carry a polytope (vertices, polygonal faces with planes, edges with
+  their two faces) so the polytope routines treat both.
+* 2D: circle and convex polygon (a 2D box is the polygon of its four corners).
+
+The pair values come from :func:`crosscheck.scene.contact.pair_material`, the one pair rule, by
+*material class*: colliders whose material has the same values and whose name no
+``[[contact_pairs]]`` entry names share a class (the rule depends on the values only), every
+named collider has a class of its own. The tables are K x K for K classes, so 5000 bodies of
+one material need a 1 x 1 table, not 5000 x 5000. ``pair_collide`` is False where an entry says
+``collide = false``.
+
+``margin`` (m) is the speculative distance: pairs closer than it are reported with a negative
+depth, so a velocity-level model can stop an approach before it becomes a penetration.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from crosscheck.scene.contact import GROUND, pair_material
+from crosscheck.scene.model import Scene
+from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
+from crosscheck.sim.collide.polytope import Polytope, box_polytope, hull_polytope
+
+# Collider kinds (3D). Polytope kinds (BOX, HULL) have ``polytope >= 0``.
+SPHERE, BOX, CAPSULE, CYLINDER, HULL = 0, 1, 2, 3, 4
+KIND_NAMES_3D = ("sphere", "box", "capsule", "cylinder", "hull")
+# Collider kinds (2D).
+CIRCLE, POLYGON = 0, 1
+KIND_NAMES_2D = ("circle", "polygon")
+
+# The default speculative distance: contacts up to 5 mm apart are reported (negative depth).
+DEFAULT_MARGIN = 5e-3
+
+
+class Geometry3D(NamedTuple):
+    """Colliders: bodies first (index = body index), then statics. Polytopes: boxes and hulls,
+    shared between colliders of the same shape. Planes: the ground (0 or 1 rows)."""
+
+    n_bodies: int
+    margin: float
+    kind: np.ndarray  # (C,) int64: SPHERE, BOX, CAPSULE, CYLINDER, HULL
+    body: np.ndarray  # (C,) int64: body index, -1 for a static
+    size: np.ndarray  # (C, 3): sphere (r, 0, 0), box half extents, capsule and cylinder
+    #                   (r, half length along z, 0), hull (0, 0, 0)
+    frame_pos: np.ndarray  # (C, 3): bodies: the shape frame's origin relative to the centre of
+    #                        mass, body frame (= -com); statics: world position
+    frame_rot: np.ndarray  # (C, 3, 3): bodies: identity; statics: world rotation
+    material_class: np.ndarray  # (C,) int64, row/column of the pair tables
+    polytope: np.ndarray  # (C,) int64: index of the box's or hull's polytope, -1 otherwise
+    poly_vert_start: np.ndarray  # (P,) int64 into vertices
+    poly_vert_count: np.ndarray  # (P,)
+    poly_face_start: np.ndarray  # (P,) into face_*
+    poly_face_count: np.ndarray  # (P,)
+    poly_edge_start: np.ndarray  # (P,) into edge_*
+    poly_edge_count: np.ndarray  # (P,)
+    poly_centroid: np.ndarray  # (P, 3) an interior point, shape frame
+    vertices: np.ndarray  # (V, 3) shape frame
+    face_normal: np.ndarray  # (F, 3) outward, shape frame
+    face_offset: np.ndarray  # (F,) normal . p on the face
+    face_vert_start: np.ndarray  # (F,) into face_verts
+    face_vert_count: np.ndarray  # (F,)
+    face_verts: np.ndarray  # (K,) int64: vertex indices local to the polytope, counter-clockwise
+    edge_verts: np.ndarray  # (E, 2) int64: vertex indices local to the polytope
+    edge_faces: np.ndarray  # (E, 2) int64: face indices local to the polytope
+    plane_normal: np.ndarray  # (G, 3) unit, out of the ground
+    plane_offset: np.ndarray  # (G,) normal . p = offset on the plane
+    plane_class: np.ndarray  # (G,) int64
+    pair_friction: np.ndarray  # (K, K)
+    pair_restitution: np.ndarray  # (K, K)
+    pair_rolling_friction: np.ndarray  # (K, K)
+    pair_torsional_friction: np.ndarray  # (K, K)
+    pair_collide: np.ndarray  # (K, K) bool
+    max_poly_verts: int  # the largest polytope's vertex count (scratch sizes)
+    max_face_verts: int  # the largest face's vertex count
+
+    @property
+    def n_colliders(self) -> int:
+        return len(self.kind)
+
+
+class Geometry2D(NamedTuple):
+    """Colliders: bodies first, then statics. Polygons: vertices counter-clockwise with the
+    outward normal of the edge from vertex k to k + 1. Planes: the ground line (0 or 1 rows)."""
+
+    n_bodies: int
+    margin: float
+    kind: np.ndarray  # (C,) int64: CIRCLE, POLYGON
+    body: np.ndarray  # (C,) int64, -1 for a static
+    radius: np.ndarray  # (C,): circle radius; polygon 0
+    frame_pos: np.ndarray  # (C, 2): bodies: -com (body frame); statics: world position
+    frame_angle: np.ndarray  # (C,): bodies 0; statics: world angle
+    material_class: np.ndarray  # (C,) int64
+    polygon: np.ndarray  # (C,) int64, -1 for a circle
+    poly_vert_start: np.ndarray  # (P,) int64
+    poly_vert_count: np.ndarray  # (P,)
+    poly_centroid: np.ndarray  # (P, 2)
+    vertices: np.ndarray  # (V, 2) shape frame, counter-clockwise
+    edge_normal: np.ndarray  # (V, 2) outward unit normal of the edge from vertex k to k + 1
+    plane_normal: np.ndarray  # (G, 2)
+    plane_offset: np.ndarray  # (G,)
+    plane_class: np.ndarray  # (G,) int64
+    pair_friction: np.ndarray  # (K, K)
+    pair_restitution: np.ndarray  # (K, K)
+    pair_rolling_friction: np.ndarray  # (K, K)
+    pair_torsional_friction: np.ndarray  # (K, K)
+    pair_collide: np.ndarray  # (K, K) bool
+    max_poly_verts: int
+
+    @property
+    def n_colliders(self) -> int:
+        return len(self.kind)
+
+
+# -- material classes -----------------------------------------------------------------------------
+class PairTable(NamedTuple):
+    collider_class: np.ndarray  # (C,) for bodies then statics
+    plane_class: np.ndarray  # (G,)
+    friction: np.ndarray
+    restitution: np.ndarray
+    rolling_friction: np.ndarray
+    torsional_friction: np.ndarray
+    collide: np.ndarray
+
+
+def pair_table(scene: Scene) -> PairTable:
+    """Material classes and the K x K pair values, every entry from ``pair_material``."""
+    named = {n for entry in scene.pair_overrides for n in (entry.a, entry.b)}
+    things = [(b.name, b.material) for b in scene.bodies]
+    things += [(s.name, s.material) for s in scene.statics]
+    if scene.ground is not None:
+        things.append((GROUND, scene.ground.material))
+    keys: dict[tuple, int] = {}
+    representative: list[str] = []
+    cls = np.empty(len(things), dtype=np.int64)
+    for i, (name, m) in enumerate(things):
+        key = (("named", name) if name in named else
+               ("values", m.friction, m.restitution, m.rolling_friction, m.torsional_friction))
+        if key not in keys:
+            keys[key] = len(representative)
+            representative.append(name)
+        cls[i] = keys[key]
+    k = len(representative)
+    tables = {name: np.zeros((k, k)) for name in
+              ("friction", "restitution", "rolling_friction", "torsional_friction")}
+    collide = np.ones((k, k), dtype=np.bool_)
+    for i in range(k):
+        for j in range(i, k):
+            pm = pair_material(scene, representative[i], representative[j])
+            for name, table in tables.items():
+                table[i, j] = table[j, i] = getattr(pm, name)
+            collide[i, j] = collide[j, i] = pm.collide
+    n_col = len(scene.bodies) + len(scene.statics)
+    return PairTable(cls[:n_col].copy(), cls[n_col:].copy(), tables["friction"],
+                     tables["restitution"], tables["rolling_friction"],
+                     tables["torsional_friction"], collide)
+
+
+# -- compiling ------------------------------------------------------------------------------------
+def compile_geometry(scene: Scene, margin: float = DEFAULT_MARGIN) -> Geometry3D | Geometry2D:
+    """The scene's bodies, statics and ground as collision arrays (see the module docstring)."""
+    if not margin >= 0.0:
+        raise ValueError(f"contact margin must be >= 0, got {margin!r}")
+    if scene.dimension == 3:
+        return _compile3d(scene, float(margin))
+    if scene.dimension == 2:
+        return _compile2d(scene, float(margin))
+    raise ValueError(f"dimension must be 2 or 3, got {scene.dimension}")
+
+
+def _placements(scene: Scene):
+    """(shape, frame position, frame orientation or None, is body) for every collider."""
+    for b in scene.bodies:
+        yield b.shape, -np.asarray(b.com, dtype=float), None
+    for s in scene.statics:
+        yield s.shape, np.asarray(s.position, dtype=float), np.asarray(s.orientation, float)
+
+
+def _compile3d(scene: Scene, margin: float) -> Geometry3D:
+    from crosscheck.rotations import quat_to_matrix
+
+    table = pair_table(scene)
+    polys: list[Polytope] = []
+    poly_index: dict[tuple, int] = {}
+    kind, size, fpos, frot, poly = [], [], [], [], []
+    for shape, pos, orientation in _placements(scene):
+        p = -1
+        if isinstance(shape, Sphere):
+            k, s = SPHERE, (shape.radius, 0.0, 0.0)
+        elif isinstance(shape, Box):
+            k, s = BOX, tuple(0.5 * np.asarray(shape.size, float))
+            key = ("box", *s)
+            if key not in poly_index:
+                poly_index[key] = len(polys)
+                polys.append(box_polytope(s))
+            p = poly_index[key]
+        elif isinstance(shape, Capsule):
+            k, s = CAPSULE, (shape.radius, 0.5 * shape.length, 0.0)
+        elif isinstance(shape, Cylinder):
+            k, s = CYLINDER, (shape.radius, 0.5 * shape.length, 0.0)
+        elif isinstance(shape, Mesh):
+            k, s = HULL, (0.0, 0.0, 0.0)
+            key = ("mesh", str(shape.path), float(shape.scale))
+            if key not in poly_index:
+                poly_index[key] = len(polys)
+                polys.append(hull_polytope(shape.vertices))
+            p = poly_index[key]
+        else:
+            raise ValueError(f"3D collision detection does not know shape {shape.kind!r}")
+        kind.append(k)
+        size.append(s)
+        fpos.append(pos)
+        frot.append(np.eye(3) if orientation is None else quat_to_matrix(orientation))
+        poly.append(p)
+    c = len(kind)
+    n = len(scene.bodies)
+    arrays = _polytope_arrays(polys)
+    planes = _planes(scene, 3)
+    return Geometry3D(
+        n_bodies=n, margin=margin,
+        kind=np.array(kind, dtype=np.int64).reshape(c),
+        body=np.array([*range(n), *([-1] * (c - n))], dtype=np.int64).reshape(c),
+        size=_f64(size, (c, 3)), frame_pos=_f64(fpos, (c, 3)), frame_rot=_f64(frot, (c, 3, 3)),
+        material_class=table.collider_class, polytope=np.array(poly, dtype=np.int64).reshape(c),
+        **arrays, plane_normal=planes[0], plane_offset=planes[1], plane_class=table.plane_class,
+        pair_friction=table.friction, pair_restitution=table.restitution,
+        pair_rolling_friction=table.rolling_friction,
+        pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
+        max_poly_verts=max([len(p.vertices) for p in polys], default=1),
+        max_face_verts=max([len(f) for p in polys for f in p.faces], default=1))
+
+
+def _polytope_arrays(polys: list[Polytope]) -> dict[str, np.ndarray]:
+    vs, fs, es = np.cumsum([0] + [len(p.vertices) for p in polys]), \
+        np.cumsum([0] + [len(p.faces) for p in polys]), \
+        np.cumsum([0] + [len(p.edges) for p in polys])
+    face_verts = [i for p in polys for f in p.faces for i in f]
+    counts = [len(f) for p in polys for f in p.faces]
+    return dict(
+        poly_vert_start=np.asarray(vs[:-1], np.int64), poly_vert_count=np.diff(vs).astype(np.int64),
+        poly_face_start=np.asarray(fs[:-1], np.int64), poly_face_count=np.diff(fs).astype(np.int64),
+        poly_edge_start=np.asarray(es[:-1], np.int64), poly_edge_count=np.diff(es).astype(np.int64),
+        poly_centroid=_f64([p.centroid for p in polys], (len(polys), 3)),
+        vertices=_f64([v for p in polys for v in p.vertices], (int(vs[-1]), 3)),
+        face_normal=_f64([n for p in polys for n in p.normals], (int(fs[-1]), 3)),
+        face_offset=_f64([o for p in polys for o in p.offsets], (int(fs[-1]),)),
+        face_vert_start=np.asarray(np.cumsum([0] + counts)[:-1], np.int64),
+        face_vert_count=np.asarray(counts, np.int64).reshape(-1),
+        face_verts=np.asarray(face_verts, np.int64).reshape(-1),
+        edge_verts=np.asarray([e for p in polys for e in p.edges], np.int64).reshape(-1, 2),
+        edge_faces=np.asarray([e for p in polys for e in p.edge_faces], np.int64).reshape(-1, 2))
+
+
+def _planes(scene: Scene, d: int) -> tuple[np.ndarray, np.ndarray]:
+    if scene.ground is None:
+        return np.zeros((0, d)), np.zeros(0)
+    n = np.asarray(scene.ground.normal, dtype=float)
+    norm = float(np.linalg.norm(n))
+    return _f64(n / norm, (1, d)), _f64([scene.ground.offset / norm], (1,))
+
+
+def _compile2d(scene: Scene, margin: float) -> Geometry2D:
+    table = pair_table(scene)
+    polys: list[np.ndarray] = []
+    poly_index: dict[tuple, int] = {}
+    kind, radius, fpos, fang, poly = [], [], [], [], []
+    for shape, pos, orientation in _placements(scene):
+        p = -1
+        if isinstance(shape, Circle):
+            k, r = CIRCLE, shape.radius
+        elif isinstance(shape, Box | Polygon):
+            k, r = POLYGON, 0.0
+            if isinstance(shape, Box):
+                hx, hy = 0.5 * np.asarray(shape.size, float)
+                verts = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+            else:
+                verts = np.asarray(shape.vertices, float)
+            key = tuple(verts.ravel())
+            if key not in poly_index:
+                poly_index[key] = len(polys)
+                polys.append(verts)
+            p = poly_index[key]
+        else:
+            raise ValueError(f"2D collision detection does not know shape {shape.kind!r}")
+        kind.append(k)
+        radius.append(r)
+        fpos.append(pos)
+        fang.append(0.0 if orientation is None else float(np.asarray(orientation).reshape(-1)[0]))
+        poly.append(p)
+    c, n = len(kind), len(scene.bodies)
+    starts = np.cumsum([0] + [len(v) for v in polys])
+    normals = []
+    for v in polys:
+        e = np.roll(v, -1, axis=0) - v
+        nrm = np.stack([e[:, 1], -e[:, 0]], axis=1)  # right of a counter-clockwise edge: outward
+        normals.extend(nrm / np.linalg.norm(nrm, axis=1)[:, None])
+    planes = _planes(scene, 2)
+    return Geometry2D(
+        n_bodies=n, margin=margin, kind=np.array(kind, np.int64).reshape(c),
+        body=np.array([*range(n), *([-1] * (c - n))], dtype=np.int64).reshape(c),
+        radius=_f64(radius, (c,)), frame_pos=_f64(fpos, (c, 2)), frame_angle=_f64(fang, (c,)),
+        material_class=table.collider_class, polygon=np.array(poly, np.int64).reshape(c),
+        poly_vert_start=np.asarray(starts[:-1], np.int64),
+        poly_vert_count=np.diff(starts).astype(np.int64),
+        poly_centroid=_f64([v.mean(axis=0) for v in polys], (len(polys), 2)),
+        vertices=_f64([x for v in polys for x in v], (int(starts[-1]), 2)),
+        edge_normal=_f64(normals, (int(starts[-1]), 2)),
+        plane_normal=planes[0], plane_offset=planes[1], plane_class=table.plane_class,
+        pair_friction=table.friction, pair_restitution=table.restitution,
+        pair_rolling_friction=table.rolling_friction,
+        pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
+        max_poly_verts=max([len(v) for v in polys], default=1))
+
+
+def _f64(a, shape) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(shape))
