@@ -336,20 +336,11 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
         if slot < 0:
             continue
         vn, vt, _ = setup_row3d(bodies, buf, r, m, rows, x, v, w, iinv)
-        # centripetal parts w x (w x r) of the two points, along each direction
-        a = buf.a[r]
-        b = buf.b[r]
-        ra = rows.ra[m]
-        cx, cy, cz = _cross(w[a, 0], w[a, 1], w[a, 2], ra[0], ra[1], ra[2])
-        ex, ey, ez = _cross(w[a, 0], w[a, 1], w[a, 2], cx, cy, cz)
-        fx = fy = fz = 0.0
-        if b >= 0:
-            rb = rows.rb[m]
-            cx, cy, cz = _cross(w[b, 0], w[b, 1], w[b, 2], rb[0], rb[1], rb[2])
-            fx, fy, fz = _cross(w[b, 0], w[b, 1], w[b, 2], cx, cy, cz)
-        for j in range(3):
-            rows.bias[m, j] = ((fx - ex) * rows.u[m, j, 0] + (fy - ey) * rows.u[m, j, 1]
-                               + (fz - ez) * rows.u[m, j, 2])
+        # No centripetal term w x (w x r): at a curved surface the contact point is not a
+        # material point, and the gap's second derivative lacks it (a rolling sphere's contact
+        # point accelerates towards the centre at w^2 r while the gap stays 0); at a vertex the
+        # term is O(w^2 r) and Baumgarte's feedback takes care of it.
+        rows.bias[m, 0] = rows.bias[m, 1] = rows.bias[m, 2] = 0.0
         rows.target[m, 0] = -2.0 * alpha * vn + alpha * alpha * buf.depth[r]
         rows.target[m, 1] = -beta * vt
         rows.target[m, 2] = 0.0
@@ -639,17 +630,7 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
         if slot < 0:
             continue
         vn, vt = setup_row2d(bodies, buf, r, m, rows, x, v, w)
-        a = buf.a[r]
-        b = buf.b[r]
-        # centripetal: -w^2 r
-        ra = rows.ra[m]
-        cbx = cby = 0.0
-        if b >= 0:
-            rb = rows.rb[m]
-            cbx, cby = -w[b] * w[b] * rb[0], -w[b] * w[b] * rb[1]
-        cax, cay = -w[a] * w[a] * ra[0], -w[a] * w[a] * ra[1]
-        for j in range(2):
-            rows.bias[m, j] = (cbx - cax) * rows.u[m, j, 0] + (cby - cay) * rows.u[m, j, 1]
+        rows.bias[m, 0] = rows.bias[m, 1] = rows.bias[m, 2] = 0.0  # no centripetal (3D)
         rows.target[m, 0] = -2.0 * alpha * vn + alpha * alpha * buf.depth[r]
         rows.target[m, 1] = -beta * vt
         rows.lam[m, 0] = active.value[cur, slot, 0]

@@ -76,13 +76,15 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                            "sets the stiffness k = m_eff omega0^2 (larger: softer, deeper, "
                            "better resolved)"),
     "exponent": (1.0, "p of the normal force k d^p + c d^((p-1)/2) d' (1: linear, 1.5: Hertz)"),
-    "damping_ratio_max": (1.0, "the largest damping ratio used (restitution below e(zeta_max), "
-                               "0.135 for p = 1, is given e(zeta_max)); keeps explicit "
+    "damping_ratio_max": (1.5, "the largest damping ratio used (restitution below e(zeta_max), "
+                               "0.076 for p = 1, is given e(zeta_max)); keeps explicit "
                                "integrators stable on the overdamped mode"),
     "friction_law": ("anchor", "'anchor' (elastic-plastic tangential spring, no creep) or "
                                "'regularised' (-mu f_n v_t / sqrt(|v_t|^2 + v_eps^2))"),
     "tangential_ratio": (2.0 / 7.0, "k_t / k of the anchor spring"),
-    "tangential_damping": (1.0, "damping ratio of the anchor spring"),
+    "tangential_damping": (0.3, "damping ratio of the anchor spring (measured: 1.0 drives a "
+                                "limit cycle with the cap at dt = 1e-3, a block creeping "
+                                "uphill)"),
     "regularisation_speed": (1e-2, "v_eps of the regularised law, m/s"),
     "spin_regularisation": (1e-2, "w_eps of rolling and torsional resistance, rad/s"),
     "capacity": (0, "contact rows (0: from the scene)"),
