@@ -196,19 +196,41 @@ def count_manifold_rows(buf, out):
 
 
 @njit(**INLINE)
-def normal_force(par, m_eff, rows, zeta, d, ddot):
-    """(f_n, k_lin): the clamped normal force of one row and the pair's linear stiffness per row."""
+def normal_force(par, m_eff, m_damp, rows, zeta, d, ddot):
+    """(f_n, k_lin): the clamped normal force of one row and the pair's linear stiffness per row.
+    Stiffness from the pair's reduced mass ``m_eff``; the dashpot from ``m_damp``, the contact
+    point's effective mass along the normal with the bodies' rotation (equal to m_eff for a sphere
+    or a body whose normal passes through its centre of mass), so a rocking mode is damped no
+    faster than a translation (a flat box's corners: an explicit step stays stable)."""
     om = par[P_OMEGA]
     p = par[P_EXP]
     k_lin = m_eff * om * om / rows
     if p == 1.0:
-        f = k_lin * d + 2.0 * zeta * m_eff * om / rows * ddot
+        f = k_lin * d + 2.0 * zeta * m_damp * om / rows * ddot
     else:
         dref = par[P_DREF]
         k = k_lin * dref ** (1.0 - p)
-        c = 2.0 * zeta * m_eff * om * dref ** (0.5 * (1.0 - p)) / rows
+        c = 2.0 * zeta * np.sqrt(m_eff * m_damp) * om * dref ** (0.5 * (1.0 - p)) / rows
         f = k * d ** p + c * d ** (0.5 * (p - 1.0)) * ddot
     return (f if f > 0.0 else 0.0), k_lin
+
+
+@njit(**INLINE)
+def point_inverse_masses3d(bodies, q, i, rx, ry, rz, nx, ny, nz):
+    """(1/m + (r x n) . I^-1 (r x n), 1/m + |r|^2 / I_min) of body i's point at r: its inverse
+    effective mass along the normal, and a bound over tangential directions."""
+    cx, cy, cz = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(q[i, 0], q[i, 1], q[i, 2],
+                                                                   q[i, 3])
+    bx = r00 * cx + r10 * cy + r20 * cz  # R^T (r x n): body frame
+    by = r01 * cx + r11 * cy + r21 * cz
+    bz = r02 * cx + r12 * cy + r22 * cz
+    a = bodies.inv_inertia[i]
+    quad = (bx * (a[0, 0] * bx + a[0, 1] * by + a[0, 2] * bz)
+            + by * (a[1, 0] * bx + a[1, 1] * by + a[1, 2] * bz)
+            + bz * (a[2, 0] * bx + a[2, 1] * by + a[2, 2] * bz))
+    im = bodies.inv_mass[i]
+    return im + quad, im + (rx * rx + ry * ry + rz * rz) / bodies.principal_moments[i, 0]
 
 
 @njit(**INLINE)
@@ -259,10 +281,16 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
             wbx, wby, wbz = w[b, 0], w[b, 1], w[b, 2]
             inv += bodies.inv_mass[b]
         m_eff = 1.0 / inv
+        ina, ita = point_inverse_masses3d(bodies, q, a, rax, ray, raz, nx, ny, nz)
+        if b >= 0:
+            inb, itb = point_inverse_masses3d(bodies, q, b, rbx, rby, rbz, nx, ny, nz)
+            ina += inb
+            ita += itb
         dvx, dvy, dvz = vbx - vax, vby - vay, vbz - vaz
         vn = dvx * nx + dvy * ny + dvz * nz
         rows = pc.manifold_rows[r]
-        fn, k_lin = normal_force(par, m_eff, rows, _zeta_of(pc, buf.restitution[r]), d, -vn)
+        fn, k_lin = normal_force(par, m_eff, 1.0 / ina, rows, _zeta_of(pc, buf.restitution[r]),
+                                 d, -vn)
         vtx, vty, vtz = dvx - vn * nx, dvy - vn * ny, dvz - vn * nz
         mu = buf.friction[r]
         ftx = fty = ftz = 0.0
@@ -272,7 +300,7 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
             ftx, fty, ftz = s * vtx, s * vty, s * vtz
         else:
             kt = par[P_KT] * k_lin
-            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT]) * m_eff * par[P_OMEGA] / rows
+            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_eff / ita) * par[P_OMEGA] / rows
             limit = mu * fn
             sx = sy = sz = 0.0
             if first:
@@ -405,10 +433,18 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
             wb = w[b]
             inv += bodies.inv_mass[b]
         m_eff = 1.0 / inv
+        ca = rax * ny - ray * nx
+        ina = bodies.inv_mass[a] + ca * ca * bodies.inv_moment[a]
+        ita = bodies.inv_mass[a] + (rax * rax + ray * ray) * bodies.inv_moment[a]
+        if b >= 0:
+            cb = rbx * ny - rby * nx
+            ina += bodies.inv_mass[b] + cb * cb * bodies.inv_moment[b]
+            ita += bodies.inv_mass[b] + (rbx * rbx + rby * rby) * bodies.inv_moment[b]
         dvx, dvy = vbx - vax, vby - vay
         vn = dvx * nx + dvy * ny
         rows = pc.manifold_rows[r]
-        fn, k_lin = normal_force(par, m_eff, rows, _zeta_of(pc, buf.restitution[r]), d, -vn)
+        fn, k_lin = normal_force(par, m_eff, 1.0 / ina, rows, _zeta_of(pc, buf.restitution[r]),
+                                 d, -vn)
         vtx, vty = dvx - vn * nx, dvy - vn * ny
         mu = buf.friction[r]
         ftx = fty = 0.0
@@ -417,7 +453,7 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
             ftx, fty = s * vtx, s * vty
         else:
             kt = par[P_KT] * k_lin
-            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT]) * m_eff * par[P_OMEGA] / rows
+            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_eff / ita) * par[P_OMEGA] / rows
             limit = mu * fn
             sx = sy = 0.0
             if first:
