@@ -61,8 +61,8 @@ from crosscheck.sim.rigid.math3d import quat_to_rotation
 
 # par indices
 (R_TOL_C, R_TOL_P, R_ALPHA, R_BETA, R_ITER, R_LCP_TOL, R_BOUNCE, R_SEQUENTIAL,
- R_IMP_ITER) = range(9)
-N_PAR = 9
+ R_IMP_ITER, R_IMPACT) = range(10)
+N_PAR = 10
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "contact_tolerance": (1e-5, "m: rows at least this close are in contact (impulses, active "
@@ -76,7 +76,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "stabilisation_steps": (10.0, "Baumgarte rate alpha = 1 / (this h) on the resting "
                                   "constraint's drift"),
     "lcp_iterations": (500, "largest number of projected Gauss-Seidel sweeps per solve"),
-    "lcp_tolerance": (1e-10, "a solve stops when no force or impulse changes by more than this "
+    "lcp_tolerance": (1e-6, "a solve stops when no force or impulse changes by more than this "
                              "times the largest one in a sweep"),
     "advance_fraction": (1.0, "conservative advancement: no body moves more than this times its "
                               "inner radius in a sub-step"),
@@ -348,8 +348,10 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
         # magnitudes: the normal force, and the friction's magnitude along the new t1)
         val = active.value[cur, slot]
         rows.lam[m, 0] = val[0]
-        rows.lam[m, 1] = 0.0
-        rows.lam[m, 2] = 0.0
+        rows.lam[m, 1] = val[1] * rows.u[m, 1, 0] + val[2] * rows.u[m, 1, 1] \
+            + val[3] * rows.u[m, 1, 2]
+        rows.lam[m, 2] = val[1] * rows.u[m, 2, 0] + val[2] * rows.u[m, 2, 1] \
+            + val[3] * rows.u[m, 2, 2]
         m += 1
     if m == 0:
         return
@@ -382,6 +384,9 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
             T[b, 2] += tz
         slot = table_find(active, cur, buf.feature[r])
         active.value[cur, slot, 0] = rows.lam[k, 0]
+        for c in range(3):  # the friction force, world frame (warm start of the next solve)
+            active.value[cur, slot, 1 + c] = (rows.lam[k, 1] * rows.u[k, 1, c]
+                                              + rows.lam[k, 2] * rows.u[k, 2, c])
 
 
 @njit(**INLINE)
@@ -422,7 +427,7 @@ def collision_impulses3d(bodies, rc, x, q, P, L):
         rows.target[m, 2] = 0.0
         rows.bias[m, 0] = rows.bias[m, 1] = rows.bias[m, 2] = 0.0
         rows.lam[m, 0] = rows.lam[m, 1] = rows.lam[m, 2] = 0.0
-        if vn < 0.0:
+        if vn < -par[R_IMPACT]:
             colliding += 1
         m += 1
     if colliding == 0:
@@ -634,7 +639,8 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
         rows.target[m, 0] = -2.0 * alpha * vn + alpha * alpha * buf.depth[r]
         rows.target[m, 1] = -beta * vt
         rows.lam[m, 0] = active.value[cur, slot, 0]
-        rows.lam[m, 1] = 0.0
+        rows.lam[m, 1] = (active.value[cur, slot, 1] * rows.u[m, 1, 0]
+                          + active.value[cur, slot, 2] * rows.u[m, 1, 1])
         rows.lam[m, 2] = 0.0
         m += 1
     if m == 0:
@@ -657,6 +663,8 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
             T[b] += rb[0] * fy - rb[1] * fx
         slot = table_find(active, cur, buf.feature[r])
         active.value[cur, slot, 0] = rows.lam[k, 0]
+        active.value[cur, slot, 1] = rows.lam[k, 1] * rows.u[k, 1, 0]
+        active.value[cur, slot, 2] = rows.lam[k, 1] * rows.u[k, 1, 1]
 
 
 @njit(**INLINE)
@@ -690,7 +698,7 @@ def collision_impulses2d(bodies, rc, x, angle, P, L):
         rows.target[m, 2] = 0.0
         rows.bias[m, 0] = rows.bias[m, 1] = rows.bias[m, 2] = 0.0
         rows.lam[m, 0] = rows.lam[m, 1] = rows.lam[m, 2] = 0.0
-        if vn < 0.0:
+        if vn < -par[R_IMPACT]:
             colliding += 1
         m += 1
     if colliding == 0:
@@ -890,7 +898,7 @@ class ImpulseLcpStepper:
         par[R_LCP_TOL] = float(self.params["lcp_tolerance"])
         par[R_SEQUENTIAL] = 1.0 if mode == "sequential" else 0.0
         self.arg = RestingContacts(
-            self.geometry, self.buf, FeatureTable.empty(capacity, 3), par, np.zeros(1),
+            self.geometry, self.buf, FeatureTable.empty(capacity, 4), par, np.zeros(1),
             _scratch(capacity, n, d), np.zeros((n, d)), np.zeros((n, 3)) if d == 3
             else np.zeros(n), np.zeros((n, 3, 3)) if d == 3 else np.zeros(n))
         self.inner, self.outer = _radii(scene)
@@ -941,6 +949,9 @@ class ImpulseLcpStepper:
         par = self.arg.par
         bounce = self.params["bounce_threshold"]
         par[R_BOUNCE] = 2.0 * self.g * h if bounce is None else float(bounce)
+        # an impulse phase runs when some contact approaches faster than this (slower drift
+        # is the resting LCP's, through its Baumgarte term)
+        par[R_IMPACT] = max(1e-2 * par[R_BOUNCE], 1e-9)
         tol_c, tol_p = par[R_TOL_C], par[R_TOL_P]
         left = h
         t_min = 1e-12 * h
