@@ -10,9 +10,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from crosscheck.sim.collide.contacts import Contacts
 from crosscheck.sim._jit import INLINE
-
+from crosscheck.sim.collide.contacts import Contacts
 from crosscheck.sim.collide.detect import detect2d as _collide2d
 from crosscheck.sim.collide.detect import detect3d as _collide3d
 

@@ -57,6 +57,7 @@ from crosscheck.sim.rigid.contact_table import (
     table_flip,
     table_insert,
 )
+from crosscheck.sim.rigid.lcp import Dense, lcp_solve
 from crosscheck.sim.rigid.math3d import quat_to_rotation
 
 # par indices
@@ -78,6 +79,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "lcp_iterations": (500, "largest number of projected Gauss-Seidel sweeps per solve"),
     "lcp_tolerance": (1e-6, "a solve stops when no force or impulse changes by more than this "
                              "times the largest one in a sweep"),
+    "direct_rows": (128, "problems of up to this many contact rows have their normal forces "
+                         "solved exactly (principal pivoting, lcp.py); larger ones by projected "
+                         "Gauss-Seidel"),
     "advance_fraction": (1.0, "conservative advancement: no body moves more than this times its "
                               "inner radius in a sub-step"),
     "capacity": (0, "contact rows (0: from the scene)"),
@@ -96,6 +100,7 @@ class RestingContacts(NamedTuple):
     lin: np.ndarray  # (N, d) linear acceleration / velocity of the solve
     ang: np.ndarray  # (N, 3) or (N,) angular
     iinv: np.ndarray  # (N, 3, 3) world inverse inertia (3D) or (N,) (2D)
+    dense: Dense  # the direct solver's scratch (lcp.py)
 
 
 class RowScratch(NamedTuple):
@@ -260,14 +265,14 @@ def _apply3d(bodies, buf, rows, k, j, dl, lin, ang):
 
 
 @njit(**INLINE)
-def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol):
+def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
     """Projected Gauss-Seidel over solver rows 0..m-1: normal ``lam_n >= 0`` with relative motion
     along n at least ``target_n``, friction ``(lam_t1, lam_t2)`` towards ``target_t`` in the disc
     of radius mu lam_n; lin / ang updated with every change. Returns the sweeps taken."""
     lam = rows.lam
     for k in range(m):  # the warm start's effect
         for j in range(3):
-            if lam[k, j] != 0.0:
+            if lam[k, j] != 0.0 and not applied:
                 _apply3d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
     sweeps = 0
     for it in range(iterations):
@@ -355,7 +360,7 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
         m += 1
     if m == 0:
         return
-    pgs3d(bodies, buf, rows, m, lin, ang, int(par[R_ITER]), par[R_LCP_TOL])
+    solve3d(bodies, buf, rows, m, lin, ang, int(par[R_ITER]), par[R_LCP_TOL], rc.dense)
     for k in range(m):
         r = rows.index[k]
         a = buf.a[r]
@@ -435,7 +440,7 @@ def collision_impulses3d(bodies, rc, x, q, P, L):
     if par[R_SEQUENTIAL] != 0.0:
         _sequential3d(bodies, buf, rows, m, v, w, bounce, int(par[R_IMP_ITER]))
     else:
-        pgs3d(bodies, buf, rows, m, v, w, int(par[R_IMP_ITER]), par[R_LCP_TOL])
+        solve3d(bodies, buf, rows, m, v, w, int(par[R_IMP_ITER]), par[R_LCP_TOL], rc.dense)
     # P, L from the summed impulses (exact momentum bookkeeping: equal and opposite)
     for k in range(m):
         r = rows.index[k]
@@ -574,11 +579,11 @@ def _apply2d(bodies, buf, rows, k, j, dl, lin, ang):
 
 
 @njit(**INLINE)
-def pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol):
+def pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
     lam = rows.lam
     for k in range(m):
         for j in range(2):
-            if lam[k, j] != 0.0:
+            if lam[k, j] != 0.0 and not applied:
                 _apply2d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
     sweeps = 0
     for it in range(iterations):
@@ -645,7 +650,7 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
         m += 1
     if m == 0:
         return
-    pgs2d(bodies, buf, rows, m, lin, ang, int(par[R_ITER]), par[R_LCP_TOL])
+    solve2d(bodies, buf, rows, m, lin, ang, int(par[R_ITER]), par[R_LCP_TOL], rc.dense)
     for k in range(m):
         r = rows.index[k]
         a = buf.a[r]
@@ -706,7 +711,7 @@ def collision_impulses2d(bodies, rc, x, angle, P, L):
     if par[R_SEQUENTIAL] != 0.0:
         _sequential2d(bodies, buf, rows, m, v, w, bounce, int(par[R_IMP_ITER]))
     else:
-        pgs2d(bodies, buf, rows, m, v, w, int(par[R_IMP_ITER]), par[R_LCP_TOL])
+        solve2d(bodies, buf, rows, m, v, w, int(par[R_IMP_ITER]), par[R_LCP_TOL], rc.dense)
     for k in range(m):
         r = rows.index[k]
         a = buf.a[r]
@@ -752,6 +757,214 @@ def _sequential2d(bodies, buf, rows, m, v, w, bounce, iterations):
             t1 = -limit
         _apply2d(bodies, buf, rows, k, 1, t1, v, w)
         rows.lam[k, 1] += t1
+
+
+# -- the direct normal solve (small problems) -----------------------------------------------------
+@njit(**INLINE)
+def _sign_resp3d(buf, rows, j, body):
+    """(sign, I^-1 (r x n_j) of row j on ``body``): +1 for b, -1 for a, 0 when not involved."""
+    r = rows.index[j]
+    if buf.a[r] == body:
+        return -1.0, rows.resp_a[j, 0, 0], rows.resp_a[j, 0, 1], rows.resp_a[j, 0, 2]
+    if buf.b[r] == body:
+        return 1.0, rows.resp_b[j, 0, 0], rows.resp_b[j, 0, 1], rows.resp_b[j, 0, 2]
+    return 0.0, 0.0, 0.0, 0.0
+
+
+@njit(**INLINE)
+def build_normal_matrix3d(bodies, buf, rows, m, A):
+    """A[i, j] = the relative normal acceleration (velocity) at row i per unit force (impulse)
+    along row j's normal: J_n M^-1 J_n^T."""
+    for i in range(m):
+        ri = rows.index[i]
+        nx, ny, nz = rows.u[i, 0, 0], rows.u[i, 0, 1], rows.u[i, 0, 2]
+        for side in range(2):
+            k = buf.a[ri] if side == 0 else buf.b[ri]
+            if k < 0:
+                continue
+            si = -1.0 if side == 0 else 1.0
+            r = rows.ra[i] if side == 0 else rows.rb[i]
+            cx, cy, cz = _cross(r[0], r[1], r[2], nx, ny, nz)
+            for j in range(i + 1):
+                sj, gx, gy, gz = _sign_resp3d(buf, rows, j, k)
+                if sj == 0.0:
+                    continue
+                v = si * sj * ((nx * rows.u[j, 0, 0] + ny * rows.u[j, 0, 1]
+                                + nz * rows.u[j, 0, 2]) * bodies.inv_mass[k]
+                               + cx * gx + cy * gy + cz * gz)
+                A[i, j] += v
+                if j != i:
+                    A[j, i] += v
+
+
+@njit(**INLINE)
+def friction_sweep3d(bodies, buf, rows, m, lin, ang):
+    """One Gauss-Seidel sweep over the friction rows (the normal forces fixed): the largest
+    change."""
+    lam = rows.lam
+    change = 0.0
+    for k in range(m):
+        limit = rows.mu[k] * lam[k, 0]
+        t1 = lam[k, 1] + (rows.target[k, 1] - _relative3d(buf, rows, k, 1, lin, ang)) \
+            * rows.k[k, 1]
+        t2 = lam[k, 2] + (rows.target[k, 2] - _relative3d(buf, rows, k, 2, lin, ang)) \
+            * rows.k[k, 2]
+        mag = np.sqrt(t1 * t1 + t2 * t2)
+        if mag > limit:
+            s = limit / mag if mag > 0.0 else 0.0
+            t1 *= s
+            t2 *= s
+        d1 = t1 - lam[k, 1]
+        d2 = t2 - lam[k, 2]
+        if d1 != 0.0:
+            _apply3d(bodies, buf, rows, k, 1, d1, lin, ang)
+            lam[k, 1] = t1
+        if d2 != 0.0:
+            _apply3d(bodies, buf, rows, k, 2, d2, lin, ang)
+            lam[k, 2] = t2
+        change = max(change, abs(d1), abs(d2))
+    return change
+
+
+@njit(**JIT)
+def solve3d(bodies, buf, rows, m, lin, ang, iterations, tol, dn):
+    """The contact problem of rows 0..m-1 (module docstring): when it fits the dense scratch,
+    the normal forces exactly (lcp.lcp_solve on J_n M^-1 J_n^T) alternating with friction sweeps
+    until no force changes by more than tol times the largest; else (or if the pivoting fails)
+    projected Gauss-Seidel. lin / ang end with the forces' effect added."""
+    lam = rows.lam
+    for k in range(m):
+        for j in range(3):
+            if lam[k, j] != 0.0:
+                _apply3d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
+    if m <= dn.q.shape[0]:
+        for i in range(m):
+            for j in range(m):
+                dn.A[i, j] = 0.0
+        build_normal_matrix3d(bodies, buf, rows, m, dn.A)
+        for k in range(m):
+            dn.active[k] = lam[k, 0] > 0.0
+        ok = True
+        for _ in range(iterations):
+            for k in range(m):
+                if lam[k, 0] != 0.0:
+                    _apply3d(bodies, buf, rows, k, 0, -lam[k, 0], lin, ang)
+            for k in range(m):
+                dn.q[k] = _relative3d(buf, rows, k, 0, lin, ang) - rows.target[k, 0]
+            if lcp_solve(dn, m, 4 * m + 50) < 0:
+                ok = False
+            change = 0.0
+            largest = 0.0
+            for k in range(m):
+                new = dn.lam[k] if (ok and dn.lam[k] > 0.0) else (lam[k, 0] if not ok else 0.0)
+                change = max(change, abs(new - lam[k, 0]))
+                largest = max(largest, new)
+                lam[k, 0] = new
+                if new != 0.0:
+                    _apply3d(bodies, buf, rows, k, 0, new, lin, ang)
+            if not ok:
+                break
+            change = max(change, friction_sweep3d(bodies, buf, rows, m, lin, ang))
+            if change <= tol * largest or largest == 0.0:
+                return
+        if ok:
+            return
+    pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, True)
+
+
+@njit(**INLINE)
+def _sign_resp2d(buf, rows, j, body):
+    r = rows.index[j]
+    if buf.a[r] == body:
+        return -1.0, rows.resp_a[j, 0]
+    if buf.b[r] == body:
+        return 1.0, rows.resp_b[j, 0]
+    return 0.0, 0.0
+
+
+@njit(**INLINE)
+def build_normal_matrix2d(bodies, buf, rows, m, A):
+    for i in range(m):
+        ri = rows.index[i]
+        nx, ny = rows.u[i, 0, 0], rows.u[i, 0, 1]
+        for side in range(2):
+            k = buf.a[ri] if side == 0 else buf.b[ri]
+            if k < 0:
+                continue
+            si = -1.0 if side == 0 else 1.0
+            r = rows.ra[i] if side == 0 else rows.rb[i]
+            c = r[0] * ny - r[1] * nx
+            for j in range(i + 1):
+                sj, g = _sign_resp2d(buf, rows, j, k)
+                if sj == 0.0:
+                    continue
+                v = si * sj * ((nx * rows.u[j, 0, 0] + ny * rows.u[j, 0, 1])
+                               * bodies.inv_mass[k] + c * g)
+                A[i, j] += v
+                if j != i:
+                    A[j, i] += v
+
+
+@njit(**INLINE)
+def friction_sweep2d(bodies, buf, rows, m, lin, ang):
+    lam = rows.lam
+    change = 0.0
+    for k in range(m):
+        limit = rows.mu[k] * lam[k, 0]
+        t1 = lam[k, 1] + (rows.target[k, 1] - _relative2d(buf, rows, k, 1, lin, ang)) \
+            * rows.k[k, 1]
+        if t1 > limit:
+            t1 = limit
+        elif t1 < -limit:
+            t1 = -limit
+        d1 = t1 - lam[k, 1]
+        if d1 != 0.0:
+            _apply2d(bodies, buf, rows, k, 1, d1, lin, ang)
+            lam[k, 1] = t1
+        change = max(change, abs(d1))
+    return change
+
+
+@njit(**JIT)
+def solve2d(bodies, buf, rows, m, lin, ang, iterations, tol, dn):
+    lam = rows.lam
+    for k in range(m):
+        for j in range(2):
+            if lam[k, j] != 0.0:
+                _apply2d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
+    if m <= dn.q.shape[0]:
+        for i in range(m):
+            for j in range(m):
+                dn.A[i, j] = 0.0
+        build_normal_matrix2d(bodies, buf, rows, m, dn.A)
+        for k in range(m):
+            dn.active[k] = lam[k, 0] > 0.0
+        ok = True
+        for _ in range(iterations):
+            for k in range(m):
+                if lam[k, 0] != 0.0:
+                    _apply2d(bodies, buf, rows, k, 0, -lam[k, 0], lin, ang)
+            for k in range(m):
+                dn.q[k] = _relative2d(buf, rows, k, 0, lin, ang) - rows.target[k, 0]
+            if lcp_solve(dn, m, 4 * m + 50) < 0:
+                ok = False
+            change = 0.0
+            largest = 0.0
+            for k in range(m):
+                new = dn.lam[k] if (ok and dn.lam[k] > 0.0) else (lam[k, 0] if not ok else 0.0)
+                change = max(change, abs(new - lam[k, 0]))
+                largest = max(largest, new)
+                lam[k, 0] = new
+                if new != 0.0:
+                    _apply2d(bodies, buf, rows, k, 0, new, lin, ang)
+            if not ok:
+                break
+            change = max(change, friction_sweep2d(bodies, buf, rows, m, lin, ang))
+            if change <= tol * largest or largest == 0.0:
+                return
+        if ok:
+            return
+    pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol, True)
 
 
 # -- event bookkeeping (both dimensions) ----------------------------------------------------------
@@ -900,7 +1113,8 @@ class ImpulseLcpStepper:
         self.arg = RestingContacts(
             self.geometry, self.buf, FeatureTable.empty(capacity, 4), par, np.zeros(1),
             _scratch(capacity, n, d), np.zeros((n, d)), np.zeros((n, 3)) if d == 3
-            else np.zeros(n), np.zeros((n, 3, 3)) if d == 3 else np.zeros(n))
+            else np.zeros(n), np.zeros((n, 3, 3)) if d == 3 else np.zeros(n),
+            Dense.empty(min(capacity, int(self.params["direct_rows"]))))
         self.inner, self.outer = _radii(scene)
         self.fraction = float(self.params["advance_fraction"])
         g = model.gravity
@@ -955,7 +1169,7 @@ class ImpulseLcpStepper:
         tol_c, tol_p = par[R_TOL_C], par[R_TOL_P]
         left = h
         t_min = 1e-12 * h
-        for _ in range(100_000):
+        for _ in range(10_000):
             if left <= t_min:
                 break
             self.stats["sub_steps"] += 1
@@ -1000,7 +1214,7 @@ class ImpulseLcpStepper:
                 self._integrate(state, hi)
                 left -= hi
         else:
-            raise ValueError("impulse_lcp: more than 100000 events in one step (a Zeno sequence)")
+            raise ValueError("impulse_lcp: more than 10000 events in one step (a Zeno sequence)")
         self.stats["steps"] += 1
 
     def advance(self, state, n_steps: int, h: float) -> None:

@@ -4,7 +4,8 @@ force pass, so every explicit integrator (RK4 included) runs through contact unc
 At every force evaluation (``forces3d.evaluate`` / ``forces2d.evaluate`` call
 :func:`penalty_wrench3d` / :func:`penalty_wrench2d` through ``contact_forces``) the contacts are
 detected at the stage's positions and every row with depth ``d > 0`` adds, at its point, with
-``n`` from a to b, ``v_rel`` the velocity of b's material point relative to a's, ``d' = -n . v_rel``:
+``n`` from a to b, ``v_rel`` the velocity of b's material point relative to a's and
+``d' = -n . v_rel``:
 
 * **normal force** ``f_n = max(0, k d^p + c d^((p-1)/2) d')``. With the exponent ``(p - 1)/2`` on
   the damping term (Tsuji et al. 1992 for Hertz's p = 3/2; the Kelvin-Voigt spring-dashpot for
@@ -537,7 +538,8 @@ class PenaltyStepper:
         self.params = {k: params.get(k, v[0]) for k, v in PARAMETERS.items()}
         law = str(self.params["friction_law"])
         if law not in ("anchor", "regularised"):
-            raise ValueError(f"penalty: friction_law must be 'anchor' or 'regularised', got {law!r}")
+            raise ValueError(f"penalty: friction_law must be 'anchor' or 'regularised', "
+                             f"got {law!r}")
         p = _number(params, "exponent")
         if not 1.0 <= p <= 3.0:
             raise ValueError(f"penalty: exponent must be in [1, 3], got {p}")
