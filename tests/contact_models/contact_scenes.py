@@ -11,9 +11,15 @@ from crosscheck.sim.rigid import compile_model, get_integrator, state_from_scene
 from crosscheck.sim.rigid.contact_models import get_contact_model
 
 
-def scene(body_blocks: str, dim: int = 3, gravity: bool = True, ground: str | None = "",
+def scene(body_blocks: str, dim: int = 3, gravity=True, ground: str | None = "",
           statics: str = "", materials: str = "") -> object:
-    g = ("[0.0, 0.0, -9.81]" if dim == 3 else "[0.0, -9.81]") if gravity else None
+    """A contact case; ``gravity``: True (-9.81 along the last axis), False, or a vector."""
+    if gravity is True:
+        g = "[0.0, 0.0, -9.81]" if dim == 3 else "[0.0, -9.81]"
+    elif gravity is False or gravity is None:
+        g = None
+    else:
+        g = str([float(c) for c in gravity])
     grav = f"gravity = {g}\n" if g else ""
     grd = "" if ground is None else f"[ground]\n{ground}\n"
     return load_case_text(f"""

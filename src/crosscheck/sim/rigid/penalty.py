@@ -64,32 +64,50 @@ from crosscheck.sim.rigid.contact_table import (
 from crosscheck.sim.rigid.math3d import quat_to_rotation
 
 # -- parameters (par array indices) ---------------------------------------------------------------
-P_OMEGA, P_EXP, P_DREF, P_KT, P_ZT, P_LAW, P_VEPS, P_WEPS, P_H, P_EVALS = range(10)
-N_PAR = 10
+(P_OMEGA, P_EXP, P_DREF, P_KT, P_ZT, P_LAW, P_VEPS, P_WEPS, P_H, P_EVALS, P_HC, P_ZMAX,
+ P_WOLD, P_WNOW) = range(14)
+N_PAR = 14
 LAW_ANCHOR, LAW_REGULARISED = 0, 1
 # friction table value layout: s (3), anchor on a (3, body frame), anchor on b (3, body frame or
 # world for fixed geometry), v_t at the step start (3)
-V_S, V_PA, V_PB, V_VT = 0, 3, 6, 9
-N_VAL = 12
+V_S, V_PA, V_PB, V_VT, V_VIN = 0, 3, 6, 9, 12
+N_VAL = 13
 
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "period_steps": (10.0, "steps of the run's dt per undamped contact period 2 pi / omega0; "
                            "sets the stiffness k = m_eff omega0^2 (larger: softer, deeper, "
                            "better resolved)"),
     "exponent": (1.0, "p of the normal force k d^p + c d^((p-1)/2) d' (1: linear, 1.5: Hertz)"),
-    "damping_ratio_max": (1.5, "the largest damping ratio used (restitution below e(zeta_max), "
-                               "0.076 for p = 1, is given e(zeta_max)); keeps explicit "
-                               "integrators stable on the overdamped mode"),
+    "damping_law": ("hunt_crossley", "'hunt_crossley': k d^p (1 + beta d'), beta = B(e) / v_in "
+                                     "(the contact's approach speed, kept per contact); 'tsuji': "
+                                     "k d^p + c d^((p-1)/2) d' (e independent of the speed, but "
+                                     "for p = 1 the dashpot jumps on at d = 0)"),
+    "restitution_floor": (0.01, "hunt_crossley: restitutions below it are given it (B = 1 / "
+                                "floor: e = 0 needs an infinite B)"),
+    "damping_ratio_max": (None, "the largest local damping ratio (hunt_crossley: caps "
+                                "k d^p beta; tsuji: caps zeta, restitution below e(zeta_max) given "
+                                "that); default by integrator, DAMPING_RATIO_MAX"),
     "friction_law": ("anchor", "'anchor' (elastic-plastic tangential spring, no creep) or "
                                "'regularised' (-mu f_n v_t / sqrt(|v_t|^2 + v_eps^2))"),
     "tangential_ratio": (2.0 / 7.0, "k_t / k of the anchor spring"),
-    "tangential_damping": (0.3, "damping ratio of the anchor spring (measured: 1.0 drives a "
-                                "limit cycle with the cap at dt = 1e-3, a block creeping "
-                                "uphill)"),
+    "tangential_damping": (None, "damping ratio of the anchor spring: 0.3, 0.5 for explicit "
+                                 "Euler (whose step amplifies an oscillation damped less than "
+                                 "about 0.33 at h omega = 0.63); measured: 1.0 drives a limit "
+                                 "cycle with the cap at dt = 1e-3, a block creeping uphill"),
     "regularisation_speed": (1e-2, "v_eps of the regularised law, m/s"),
     "spin_regularisation": (1e-2, "w_eps of rolling and torsional resistance, rad/s"),
     "capacity": (0, "contact rows (0: from the scene)"),
 }
+
+
+# The damping cap by integrator at the default period (h omega0 = 0.63). Stiffness-proportional
+# damping gives a box's rocking modes up to sqrt(3) times the frequency and damping ratio of a
+# translation, and each scheme's step is stable on a damped oscillation only up to some damping
+# ratio (symplectic Euler: 1.43 at h omega = 0.63, 0.64 at 1.09; RK4: 2.3 and 1.5): measured on a
+# block resting on a 20 degree incline and a tilted box dropped on the ground, the largest caps
+# that leave no limit cycle (a creeping block) are these.
+DAMPING_RATIO_MAX = {"rk4": 1.2, "rk4_exp": 1.2, "midpoint": 0.8, "verlet": 0.8,
+                     "symplectic_euler": 0.6, "symplectic_euler_exp": 0.6, "explicit_euler": 0.6}
 
 
 class PenaltyContacts(NamedTuple):
@@ -108,15 +126,18 @@ class PenaltyContacts(NamedTuple):
 
 # -- restitution -> damping ratio -----------------------------------------------------------------
 @njit(**INLINE)
-def _impact_force(x, v, zeta, p, q):
-    """x^p + 2 zeta x^q v of the dimensionless impact (x^0 = 1: the dashpot acts from x = 0)."""
+def _impact_force(x, v, zeta, p, q, hunt_crossley):
+    """The dimensionless impact's force: Hunt-Crossley x^p (1 + zeta v) (zeta standing for
+    B = beta v_in), or x^p + 2 zeta x^q v (x^0 = 1: that dashpot acts from x = 0)."""
     xp = x if x > 0.0 else 0.0
+    if hunt_crossley:
+        return xp ** p * (1.0 + zeta * v)
     damp = 2.0 * zeta * v * (xp ** q if q > 0.0 else 1.0)
     return xp ** p + damp
 
 
 @njit(**JIT)
-def restitution_of(zeta, p):
+def restitution_of(zeta, p, hunt_crossley=False):
     """Coefficient of restitution of the dimensionless unilateral impact
     x'' = -(x^p + 2 zeta x^((p-1)/2) x'), x(0) = 0, x'(0) = 1, while that force is positive:
     RK4 with step 1e-4, the separation (force 0 with x' < 0, or x back to 0) located by linear
@@ -125,20 +146,21 @@ def restitution_of(zeta, p):
     dt = 1e-4
     x = 0.0
     v = 1.0
-    f = _impact_force(x, v, zeta, p, q)
+    f = _impact_force(x, v, zeta, p, q, hunt_crossley)
     for _ in range(100_000_000):
-        k1x, k1v = v, -_impact_force(x, v, zeta, p, q)
+        k1x, k1v = v, -_impact_force(x, v, zeta, p, q, hunt_crossley)
         k2x, k2v = v + 0.5 * dt * k1v, -_impact_force(x + 0.5 * dt * k1x, v + 0.5 * dt * k1v,
-                                                      zeta, p, q)
+                                                      zeta, p, q, hunt_crossley)
         k3x, k3v = v + 0.5 * dt * k2v, -_impact_force(x + 0.5 * dt * k2x, v + 0.5 * dt * k2v,
-                                                      zeta, p, q)
-        k4x, k4v = v + dt * k3v, -_impact_force(x + dt * k3x, v + dt * k3v, zeta, p, q)
+                                                      zeta, p, q, hunt_crossley)
+        k4x, k4v = v + dt * k3v, -_impact_force(x + dt * k3x, v + dt * k3v, zeta, p, q,
+                                             hunt_crossley)
         xn = x + dt / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
         vn = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         if xn <= 0.0:  # back at the surface still pushed
             s = x / (x - xn)
             return -(v + s * (vn - v))
-        fn = _impact_force(xn, vn, zeta, p, q)
+        fn = _impact_force(xn, vn, zeta, p, q, hunt_crossley)
         if vn < 0.0 and fn <= 0.0:  # the force reaches zero: free from here on
             s = f / (f - fn) if f > fn else 1.0
             return -(v + s * (vn - v))
@@ -146,17 +168,17 @@ def restitution_of(zeta, p):
     return -v
 
 
-def damping_ratio(e: float, p: float, zeta_max: float) -> float:
-    """zeta with restitution_of(zeta, p) = e (bisection to 1e-10 in e); zeta_max when e is at or
-    below restitution_of(zeta_max, p); 0 for e >= 1."""
+def damping_ratio(e: float, p: float, zeta_max: float, hunt_crossley: bool = False) -> float:
+    """zeta (or Hunt and Crossley's B = beta v_in) with restitution_of(zeta, p) = e (bisection
+    to 1e-10 in e); zeta_max when e is at or below restitution_of(zeta_max, p); 0 for e >= 1."""
     if e >= 1.0:
         return 0.0
-    if e <= restitution_of(zeta_max, p):
+    if e <= restitution_of(zeta_max, p, hunt_crossley):
         return zeta_max
     lo, hi = 0.0, zeta_max
     for _ in range(100):
         mid = 0.5 * (lo + hi)
-        if restitution_of(mid, p) > e:
+        if restitution_of(mid, p, hunt_crossley) > e:
             lo = mid
         else:
             hi = mid
@@ -197,22 +219,52 @@ def count_manifold_rows(buf, out):
 
 
 @njit(**INLINE)
-def normal_force(par, m_eff, m_damp, rows, zeta, d, ddot):
-    """(f_n, k_lin): the clamped normal force of one row and the pair's linear stiffness per row.
-    Stiffness from the pair's reduced mass ``m_eff``; the dashpot from ``m_damp``, the contact
-    point's effective mass along the normal with the bodies' rotation (equal to m_eff for a sphere
-    or a body whose normal passes through its centre of mass), so a rocking mode is damped no
-    faster than a translation (a flat box's corners: an explicit step stays stable)."""
+def impact_speed(par, d, ddot):
+    """The approach speed a contact had when it began, from its depth and rate now (the spring's
+    energy given back; exact for an undamped approach): sqrt(d'^2 + 2 omega0^2 d_ref^(1-p)
+    d^(p+1) / (p + 1)), at least 1e-9 m/s."""
+    p = par[P_EXP]
+    om = par[P_OMEGA]
+    v2 = ddot * ddot + 2.0 * om * om * par[P_DREF] ** (1.0 - p) * d ** (p + 1.0) / (p + 1.0)
+    return max(np.sqrt(v2), 1e-9)
+
+
+@njit(**INLINE)
+def row_mass(m_eff, rows, inv_point):
+    """The mass a row's spring and dashpot are set for: the pair's reduced mass shared among the
+    manifold's rows, but at most the contact point's own effective mass along the normal (with the
+    bodies' rotation, ``1 / inv_point``), so that no contact mode, a box landing on a corner
+    included, oscillates faster than omega0 or is damped faster than the cap allows. A sphere:
+    the reduced mass; a box resting on a face: its share, unchanged."""
+    share = m_eff / rows
+    point = 1.0 / inv_point
+    return share if share < point else point
+
+
+@njit(**INLINE)
+def normal_force(par, m_row, damping, d, ddot, v_in):
+    """(f_n, k_row): the clamped normal force of one row and its linear stiffness
+    ``k_row = m_row omega0^2``.
+
+    Hunt-Crossley (the default): ``k d^p (1 + beta d')`` with ``beta = B(e) / v_in``, the local
+    damping ``k d^p beta`` capped at ``2 zeta_max sqrt(m_row k_loc)`` (``k_loc = p k d^(p-1)``:
+    a slow or resting contact is not damped faster than an explicit step can take). Tsuji's form:
+    ``k d^p + c d^((p-1)/2) d'`` with ``c = 2 zeta m_row omega0`` (times ``d_ref^((1-p)/2)``)."""
     om = par[P_OMEGA]
     p = par[P_EXP]
-    k_lin = m_eff * om * om / rows
-    if p == 1.0:
-        f = k_lin * d + 2.0 * zeta * m_damp * om / rows * ddot
+    k_lin = m_row * om * om
+    k = k_lin if p == 1.0 else k_lin * par[P_DREF] ** (1.0 - p)
+    kd = k * d if p == 1.0 else k * d ** p
+    if par[P_HC] != 0.0:
+        c = kd * damping / v_in
+        k_loc = k if p == 1.0 else p * k * d ** (p - 1.0)
+        c_max = 2.0 * par[P_ZMAX] * np.sqrt(m_row * k_loc)
+        f = kd + min(c, c_max) * ddot
+    elif p == 1.0:
+        f = kd + 2.0 * damping * m_row * om * ddot
     else:
-        dref = par[P_DREF]
-        k = k_lin * dref ** (1.0 - p)
-        c = 2.0 * zeta * np.sqrt(m_eff * m_damp) * om * dref ** (0.5 * (1.0 - p)) / rows
-        f = k * d ** p + c * d ** (0.5 * (p - 1.0)) * ddot
+        c = 2.0 * damping * m_row * om * par[P_DREF] ** (0.5 * (1.0 - p))
+        f = kd + c * d ** (0.5 * (p - 1.0)) * ddot
     return (f if f > 0.0 else 0.0), k_lin
 
 
@@ -253,11 +305,13 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
     count_manifold_rows(buf, pc.manifold_rows)
     law = int(par[P_LAW])
     table = pc.table
-    if first and law == LAW_ANCHOR:
+    if first:
         table_flip(table)
     cur = table.current[0]
     prev = 1 - cur
     h = par[P_H]
+    wo = par[P_WOLD]
+    wn = par[P_WNOW]
     for r in range(n):
         d = buf.depth[r]
         if d <= 0.0:
@@ -290,8 +344,31 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
         dvx, dvy, dvz = vbx - vax, vby - vay, vbz - vaz
         vn = dvx * nx + dvy * ny + dvz * nz
         rows = pc.manifold_rows[r]
-        fn, k_lin = normal_force(par, m_eff, 1.0 / ina, rows, _zeta_of(pc, buf.restitution[r]),
-                                 d, -vn)
+        feature = buf.feature[r]
+        old = -1
+        if first:
+            old = table_find(table, prev, feature)
+            slot = table_insert(table, feature)
+            if slot < 0:
+                raise ValueError("penalty: contact table full")
+            v_in = table.value[prev, old, V_VIN] if old >= 0 else impact_speed(par, d, -vn)
+            table.value[cur, slot, V_VIN] = v_in
+            fresh = True
+        else:  # a stage: a contact seen for the first time is stored now, at its first depth
+            slot = table_find(table, cur, feature)
+            fresh = slot < 0
+            if fresh:
+                slot = table_insert(table, feature)
+                if slot < 0:
+                    raise ValueError("penalty: contact table full")
+                v_in = impact_speed(par, d, -vn)
+                table.value[cur, slot, V_VIN] = v_in
+                for c_ in range(V_VIN):
+                    table.value[cur, slot, c_] = 0.0
+            else:
+                v_in = table.value[cur, slot, V_VIN]
+        m_row = row_mass(m_eff, rows, ina)
+        fn, k_lin = normal_force(par, m_row, _zeta_of(pc, buf.restitution[r]), d, -vn, v_in)
         vtx, vty, vtz = dvx - vn * nx, dvy - vn * ny, dvz - vn * nz
         mu = buf.friction[r]
         ftx = fty = ftz = 0.0
@@ -301,23 +378,19 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
             ftx, fty, ftz = s * vtx, s * vty, s * vtz
         else:
             kt = par[P_KT] * k_lin
-            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_eff / ita) * par[P_OMEGA] / rows
+            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_row / ita) * par[P_OMEGA]
             limit = mu * fn
             sx = sy = sz = 0.0
-            if first:
-                old = table_find(table, prev, buf.feature[r])
+            if fresh:
                 if old >= 0:
                     val = table.value[prev, old]
-                    sx = val[V_S] + 0.5 * h * (val[V_VT] + vtx)
-                    sy = val[V_S + 1] + 0.5 * h * (val[V_VT + 1] + vty)
-                    sz = val[V_S + 2] + 0.5 * h * (val[V_VT + 2] + vtz)
+                    sx = val[V_S] + h * (wo * val[V_VT] + wn * vtx)
+                    sy = val[V_S + 1] + h * (wo * val[V_VT + 1] + wn * vty)
+                    sz = val[V_S + 2] + h * (wo * val[V_VT + 2] + wn * vtz)
                     sn = sx * nx + sy * ny + sz * nz
                     sx, sy, sz = sx - sn * nx, sy - sn * ny, sz - sn * nz
                     if kt > 0.0:
                         sx, sy, sz, _ = _cap(sx, sy, sz, limit / kt)
-                slot = table_insert(table, buf.feature[r])
-                if slot < 0:
-                    raise ValueError("penalty: friction table full")
                 val = table.value[cur, slot]
                 val[V_S], val[V_S + 1], val[V_S + 2] = sx, sy, sz
                 val[V_VT], val[V_VT + 1], val[V_VT + 2] = vtx, vty, vtz
@@ -335,30 +408,28 @@ def penalty_rows3d(bodies, pc, x, q, v, w, F, T, first):
                 else:
                     val[V_PB], val[V_PB + 1], val[V_PB + 2] = px, py, pz
             else:
-                slot = table_find(table, cur, buf.feature[r])
-                if slot >= 0:
-                    val = table.value[cur, slot]
+                val = table.value[cur, slot]
+                r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(
+                    q[a, 0], q[a, 1], q[a, 2], q[a, 3])
+                ax_ = x[a, 0] + r00 * val[V_PA] + r01 * val[V_PA + 1] + r02 * val[V_PA + 2]
+                ay_ = x[a, 1] + r10 * val[V_PA] + r11 * val[V_PA + 1] + r12 * val[V_PA + 2]
+                az_ = x[a, 2] + r20 * val[V_PA] + r21 * val[V_PA + 1] + r22 * val[V_PA + 2]
+                if b >= 0:
                     r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(
-                        q[a, 0], q[a, 1], q[a, 2], q[a, 3])
-                    ax_ = x[a, 0] + r00 * val[V_PA] + r01 * val[V_PA + 1] + r02 * val[V_PA + 2]
-                    ay_ = x[a, 1] + r10 * val[V_PA] + r11 * val[V_PA + 1] + r12 * val[V_PA + 2]
-                    az_ = x[a, 2] + r20 * val[V_PA] + r21 * val[V_PA + 1] + r22 * val[V_PA + 2]
-                    if b >= 0:
-                        r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rotation(
-                            q[b, 0], q[b, 1], q[b, 2], q[b, 3])
-                        bx_ = x[b, 0] + r00 * val[V_PB] + r01 * val[V_PB + 1] \
-                            + r02 * val[V_PB + 2]
-                        by_ = x[b, 1] + r10 * val[V_PB] + r11 * val[V_PB + 1] \
-                            + r12 * val[V_PB + 2]
-                        bz_ = x[b, 2] + r20 * val[V_PB] + r21 * val[V_PB + 1] \
-                            + r22 * val[V_PB + 2]
-                    else:
-                        bx_, by_, bz_ = val[V_PB], val[V_PB + 1], val[V_PB + 2]
-                    sx = val[V_S] + bx_ - ax_
-                    sy = val[V_S + 1] + by_ - ay_
-                    sz = val[V_S + 2] + bz_ - az_
-                    sn = sx * nx + sy * ny + sz * nz
-                    sx, sy, sz = sx - sn * nx, sy - sn * ny, sz - sn * nz
+                        q[b, 0], q[b, 1], q[b, 2], q[b, 3])
+                    bx_ = x[b, 0] + r00 * val[V_PB] + r01 * val[V_PB + 1] \
+                        + r02 * val[V_PB + 2]
+                    by_ = x[b, 1] + r10 * val[V_PB] + r11 * val[V_PB + 1] \
+                        + r12 * val[V_PB + 2]
+                    bz_ = x[b, 2] + r20 * val[V_PB] + r21 * val[V_PB + 1] \
+                        + r22 * val[V_PB + 2]
+                else:
+                    bx_, by_, bz_ = val[V_PB], val[V_PB + 1], val[V_PB + 2]
+                sx = val[V_S] + bx_ - ax_
+                sy = val[V_S + 1] + by_ - ay_
+                sz = val[V_S + 2] + bz_ - az_
+                sn = sx * nx + sy * ny + sz * nz
+                sx, sy, sz = sx - sn * nx, sy - sn * ny, sz - sn * nz
             ftx, fty, ftz, _ = _cap(-kt * sx - ct * vtx, -kt * sy - ct * vty,
                                     -kt * sz - ct * vtz, limit)
         # force on b at the point (and its opposite on a)
@@ -407,11 +478,13 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
     count_manifold_rows(buf, pc.manifold_rows)
     law = int(par[P_LAW])
     table = pc.table
-    if first and law == LAW_ANCHOR:
+    if first:
         table_flip(table)
     cur = table.current[0]
     prev = 1 - cur
     h = par[P_H]
+    wo = par[P_WOLD]
+    wn = par[P_WNOW]
     for r in range(n):
         d = buf.depth[r]
         if d <= 0.0:
@@ -444,8 +517,31 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
         dvx, dvy = vbx - vax, vby - vay
         vn = dvx * nx + dvy * ny
         rows = pc.manifold_rows[r]
-        fn, k_lin = normal_force(par, m_eff, 1.0 / ina, rows, _zeta_of(pc, buf.restitution[r]),
-                                 d, -vn)
+        feature = buf.feature[r]
+        old = -1
+        if first:
+            old = table_find(table, prev, feature)
+            slot = table_insert(table, feature)
+            if slot < 0:
+                raise ValueError("penalty: contact table full")
+            v_in = table.value[prev, old, V_VIN] if old >= 0 else impact_speed(par, d, -vn)
+            table.value[cur, slot, V_VIN] = v_in
+            fresh = True
+        else:  # a stage: a contact seen for the first time is stored now, at its first depth
+            slot = table_find(table, cur, feature)
+            fresh = slot < 0
+            if fresh:
+                slot = table_insert(table, feature)
+                if slot < 0:
+                    raise ValueError("penalty: contact table full")
+                v_in = impact_speed(par, d, -vn)
+                table.value[cur, slot, V_VIN] = v_in
+                for c_ in range(V_VIN):
+                    table.value[cur, slot, c_] = 0.0
+            else:
+                v_in = table.value[cur, slot, V_VIN]
+        m_row = row_mass(m_eff, rows, ina)
+        fn, k_lin = normal_force(par, m_row, _zeta_of(pc, buf.restitution[r]), d, -vn, v_in)
         vtx, vty = dvx - vn * nx, dvy - vn * ny
         mu = buf.friction[r]
         ftx = fty = 0.0
@@ -454,22 +550,18 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
             ftx, fty = s * vtx, s * vty
         else:
             kt = par[P_KT] * k_lin
-            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_eff / ita) * par[P_OMEGA] / rows
+            ct = 2.0 * par[P_ZT] * np.sqrt(par[P_KT] * m_row / ita) * par[P_OMEGA]
             limit = mu * fn
             sx = sy = 0.0
-            if first:
-                old = table_find(table, prev, buf.feature[r])
+            if fresh:
                 if old >= 0:
                     val = table.value[prev, old]
-                    sx = val[V_S] + 0.5 * h * (val[V_VT] + vtx)
-                    sy = val[V_S + 1] + 0.5 * h * (val[V_VT + 1] + vty)
+                    sx = val[V_S] + h * (wo * val[V_VT] + wn * vtx)
+                    sy = val[V_S + 1] + h * (wo * val[V_VT + 1] + wn * vty)
                     sn = sx * nx + sy * ny
                     sx, sy = sx - sn * nx, sy - sn * ny
                     if kt > 0.0:
                         sx, sy, _z, _ = _cap(sx, sy, 0.0, limit / kt)
-                slot = table_insert(table, buf.feature[r])
-                if slot < 0:
-                    raise ValueError("penalty: friction table full")
                 val = table.value[cur, slot]
                 val[V_S], val[V_S + 1] = sx, sy
                 val[V_VT], val[V_VT + 1] = vtx, vty
@@ -483,22 +575,20 @@ def penalty_rows2d(bodies, pc, x, angle, v, w, F, T, first):
                 else:
                     val[V_PB], val[V_PB + 1] = px, py
             else:
-                slot = table_find(table, cur, buf.feature[r])
-                if slot >= 0:
-                    val = table.value[cur, slot]
-                    c, sn_ = np.cos(angle[a]), np.sin(angle[a])
-                    ax_ = x[a, 0] + c * val[V_PA] - sn_ * val[V_PA + 1]
-                    ay_ = x[a, 1] + sn_ * val[V_PA] + c * val[V_PA + 1]
-                    if b >= 0:
-                        c, sn_ = np.cos(angle[b]), np.sin(angle[b])
-                        bx_ = x[b, 0] + c * val[V_PB] - sn_ * val[V_PB + 1]
-                        by_ = x[b, 1] + sn_ * val[V_PB] + c * val[V_PB + 1]
-                    else:
-                        bx_, by_ = val[V_PB], val[V_PB + 1]
-                    sx = val[V_S] + bx_ - ax_
-                    sy = val[V_S + 1] + by_ - ay_
-                    sn = sx * nx + sy * ny
-                    sx, sy = sx - sn * nx, sy - sn * ny
+                val = table.value[cur, slot]
+                c, sn_ = np.cos(angle[a]), np.sin(angle[a])
+                ax_ = x[a, 0] + c * val[V_PA] - sn_ * val[V_PA + 1]
+                ay_ = x[a, 1] + sn_ * val[V_PA] + c * val[V_PA + 1]
+                if b >= 0:
+                    c, sn_ = np.cos(angle[b]), np.sin(angle[b])
+                    bx_ = x[b, 0] + c * val[V_PB] - sn_ * val[V_PB + 1]
+                    by_ = x[b, 1] + sn_ * val[V_PB] + c * val[V_PB + 1]
+                else:
+                    bx_, by_ = val[V_PB], val[V_PB + 1]
+                sx = val[V_S] + bx_ - ax_
+                sy = val[V_S + 1] + by_ - ay_
+                sn = sx * nx + sy * ny
+                sx, sy = sx - sn * nx, sy - sn * ny
             ftx, fty, _z, _ = _cap(-kt * sx - ct * vtx, -kt * sy - ct * vty, 0.0, limit)
         fx = fn * nx + ftx
         fy = fn * ny + fty
@@ -547,19 +637,39 @@ class PenaltyStepper:
             scene, margin=0.0, capacity=int(_number(params, "capacity")))
         self.buf = contact_detect.new_contacts(capacity, model.dimension)
         self.contacts = self.buf
-        zmax = _number(params, "damping_ratio_max")
+        if self.params["damping_ratio_max"] is None:
+            self.params["damping_ratio_max"] = DAMPING_RATIO_MAX.get(integrator.name, 0.6)
+        if self.params["tangential_damping"] is None:
+            self.params["tangential_damping"] = 0.5 if integrator.name == "explicit_euler" else 0.3
+        zmax = _number(self.params, "damping_ratio_max")
+        dlaw = str(self.params["damping_law"])
+        if dlaw not in ("hunt_crossley", "tsuji"):
+            raise ValueError(f"penalty: damping_law must be 'hunt_crossley' or 'tsuji', "
+                             f"got {dlaw!r}")
+        self.hunt_crossley = dlaw == "hunt_crossley"
         values = sorted({float(e) for e in contact_detect.pair_restitutions(scene)})
-        self.zeta = {e: damping_ratio(e, p, zmax) for e in values}
+        if self.hunt_crossley:  # B(e), e below the floor given the floor's B (1 / floor)
+            floor = _number(params, "restitution_floor")
+            self.zeta = {e: damping_ratio(max(e, floor), p, 1.0 / floor, True) for e in values}
+        else:
+            self.zeta = {e: damping_ratio(e, p, zmax) for e in values}
         gravity = model.gravity
         self._g = 0.0 if gravity is None else float(np.linalg.norm(gravity))
         par = np.zeros(N_PAR)
         par[P_EXP] = p
         par[P_KT] = _number(params, "tangential_ratio")
-        par[P_ZT] = _number(params, "tangential_damping")
+        par[P_ZT] = _number(self.params, "tangential_damping")
         par[P_LAW] = LAW_ANCHOR if law == "anchor" else LAW_REGULARISED
         par[P_VEPS] = _number(params, "regularisation_speed")
         par[P_WEPS] = _number(params, "spin_regularisation")
         par[P_EVALS] = integrator.evaluations
+        par[P_HC] = 1.0 if self.hunt_crossley else 0.0
+        par[P_ZMAX] = zmax
+        # the anchor's displacement over a step, by the integrator's own position update:
+        # velocity first (x += h v_new), position first (x += h v_old), else the trapezoid
+        par[P_WOLD], par[P_WNOW] = {"velocity_first": (0.0, 1.0),
+                                    "position_first": (1.0, 0.0)}.get(integrator.scheme,
+                                                                       (0.5, 0.5))
         self.arg = PenaltyContacts(
             self.geometry, self.scratch, self.buf, par,
             np.array(values or [0.0]), np.array([self.zeta[e] for e in values] or [0.0]),
@@ -586,9 +696,11 @@ class PenaltyStepper:
         return {"model": "penalty", "parameters": dict(self.params),
                 "omega0": float(par[P_OMEGA]), "stiffness_rule":
                 "k = m_eff omega0^2 per pair, omega0 = 2 pi / (period_steps dt)",
-                "damping_ratio": {str(e): z for e, z in self.zeta.items()},
+                "damping": {str(e): z for e, z in self.zeta.items()},
+                "damping_meaning": "B = beta v_in (Hunt-Crossley)" if self.hunt_crossley
+                else "damping ratio zeta (Tsuji)",
                 "restitution_effective": {
-                    str(e): float(restitution_of(z, float(par[P_EXP])))
+                    str(e): float(restitution_of(z, float(par[P_EXP]), self.hunt_crossley))
                     for e, z in self.zeta.items()},
                 "evaluations_per_step": int(par[P_EVALS])}
 
