@@ -338,9 +338,11 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
     m = 0
     for r in range(buf.count[0]):
         slot = table_find(active, cur, buf.feature[r])
-        if slot < 0:
+        if slot < 0 and table_find(active, cur, pair_key(buf.feature[r])) < 0:
             continue
         vn, vt, _ = setup_row3d(bodies, buf, r, m, rows, x, v, w, iinv)
+        if slot < 0 and vn < -par[R_IMPACT]:
+            continue  # a new point of a touching pair that strikes: an event, not resting
         # No centripetal term w x (w x r): at a curved surface the contact point is not a
         # material point, and the gap's second derivative lacks it (a rolling sphere's contact
         # point accelerates towards the centre at w^2 r while the gap stays 0); at a vertex the
@@ -351,12 +353,14 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
         rows.target[m, 2] = 0.0
         # warm start from the last solve (stored per feature in the world frame's n, t1, t2
         # magnitudes: the normal force, and the friction's magnitude along the new t1)
-        val = active.value[cur, slot]
-        rows.lam[m, 0] = val[0]
-        rows.lam[m, 1] = val[1] * rows.u[m, 1, 0] + val[2] * rows.u[m, 1, 1] \
-            + val[3] * rows.u[m, 1, 2]
-        rows.lam[m, 2] = val[1] * rows.u[m, 2, 0] + val[2] * rows.u[m, 2, 1] \
-            + val[3] * rows.u[m, 2, 2]
+        rows.lam[m, 0] = rows.lam[m, 1] = rows.lam[m, 2] = 0.0
+        if slot >= 0:
+            val = active.value[cur, slot]
+            rows.lam[m, 0] = val[0]
+            rows.lam[m, 1] = val[1] * rows.u[m, 1, 0] + val[2] * rows.u[m, 1, 1] \
+                + val[3] * rows.u[m, 1, 2]
+            rows.lam[m, 2] = val[1] * rows.u[m, 2, 0] + val[2] * rows.u[m, 2, 1] \
+                + val[3] * rows.u[m, 2, 2]
         m += 1
     if m == 0:
         return
@@ -388,6 +392,8 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
             T[b, 1] += ty
             T[b, 2] += tz
         slot = table_find(active, cur, buf.feature[r])
+        if slot < 0:
+            continue
         active.value[cur, slot, 0] = rows.lam[k, 0]
         for c in range(3):  # the friction force, world frame (warm start of the next solve)
             active.value[cur, slot, 1 + c] = (rows.lam[k, 1] * rows.u[k, 1, c]
@@ -637,16 +643,19 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
     m = 0
     for r in range(buf.count[0]):
         slot = table_find(active, cur, buf.feature[r])
-        if slot < 0:
+        if slot < 0 and table_find(active, cur, pair_key(buf.feature[r])) < 0:
             continue
         vn, vt = setup_row2d(bodies, buf, r, m, rows, x, v, w)
+        if slot < 0 and vn < -par[R_IMPACT]:
+            continue
         rows.bias[m, 0] = rows.bias[m, 1] = rows.bias[m, 2] = 0.0  # no centripetal (3D)
         rows.target[m, 0] = -2.0 * alpha * vn + alpha * alpha * buf.depth[r]
         rows.target[m, 1] = -beta * vt
-        rows.lam[m, 0] = active.value[cur, slot, 0]
-        rows.lam[m, 1] = (active.value[cur, slot, 1] * rows.u[m, 1, 0]
-                          + active.value[cur, slot, 2] * rows.u[m, 1, 1])
-        rows.lam[m, 2] = 0.0
+        rows.lam[m, 0] = rows.lam[m, 1] = rows.lam[m, 2] = 0.0
+        if slot >= 0:
+            rows.lam[m, 0] = active.value[cur, slot, 0]
+            rows.lam[m, 1] = (active.value[cur, slot, 1] * rows.u[m, 1, 0]
+                              + active.value[cur, slot, 2] * rows.u[m, 1, 1])
         m += 1
     if m == 0:
         return
@@ -667,6 +676,8 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
             F[b, 1] += fy
             T[b] += rb[0] * fy - rb[1] * fx
         slot = table_find(active, cur, buf.feature[r])
+        if slot < 0:
+            continue
         active.value[cur, slot, 0] = rows.lam[k, 0]
         active.value[cur, slot, 1] = rows.lam[k, 1] * rows.u[k, 1, 0]
         active.value[cur, slot, 2] = rows.lam[k, 1] * rows.u[k, 1, 1]
@@ -980,7 +991,7 @@ def mark_active(buf, active, tol_c):
             continue
         old = table_find(active, prev, buf.feature[r])
         slot = table_insert(active, buf.feature[r])
-        if slot < 0:
+        if slot < 0 or table_insert(active, pair_key(buf.feature[r])) < 0:
             raise ValueError("impulse_lcp: active-set table full")
         if old >= 0:
             for j in range(active.value.shape[2]):
@@ -992,16 +1003,76 @@ def mark_active(buf, active, tol_c):
     return n
 
 
+@njit(**INLINE)
+def pair_key(feature):
+    """The active-set key of a row's collider pair (negative: never a feature)."""
+    return -(feature >> 32) - 1
+
+
+@njit(**INLINE)
+def _is_new_event(active, cur, feature, vn, v_impact):
+    """A row not in the active set is an event unless its pair touches already and it does not
+    strike (a point a touching manifold adds, or a feature id that changes, while resting)."""
+    if table_find(active, cur, feature) >= 0:
+        return False
+    if table_find(active, cur, pair_key(feature)) >= 0 and vn >= -v_impact:
+        return False
+    return True
+
+
 @njit(**JIT)
-def new_contact_depths(buf, active):
-    """(deepest, shallowest-in-band flag inputs): the largest depth among rows not in the active
-    set (-inf when there is none)."""
+def new_contact_depths3d(bodies, rc, x, q, P, L):
+    """The largest depth among the rows that are events (``_is_new_event``), -inf if none."""
+    buf = rc.buf
+    active = rc.active
+    cur = active.current[0]
+    v = rc.lin
+    w = rc.ang
+    world_inverse_inertia3d(bodies, q, rc.iinv)
+    for i in range(x.shape[0]):
+        im = bodies.inv_mass[i]
+        v[i, 0], v[i, 1], v[i, 2] = P[i, 0] * im, P[i, 1] * im, P[i, 2] * im
+        w[i, 0], w[i, 1], w[i, 2] = _mat(rc.iinv, i, L[i, 0], L[i, 1], L[i, 2])
+    deepest = -np.inf
+    for r in range(buf.count[0]):
+        if buf.depth[r] <= deepest:
+            continue
+        a = buf.a[r]
+        b = buf.b[r]
+        px, py, pz = buf.point[r, 0], buf.point[r, 1], buf.point[r, 2]
+        vax, vay, vaz = _point_velocity3d(x, v, w, a, px, py, pz)
+        vbx = vby = vbz = 0.0
+        if b >= 0:
+            vbx, vby, vbz = _point_velocity3d(x, v, w, b, px, py, pz)
+        vn = ((vbx - vax) * buf.normal[r, 0] + (vby - vay) * buf.normal[r, 1]
+              + (vbz - vaz) * buf.normal[r, 2])
+        if _is_new_event(active, cur, buf.feature[r], vn, rc.par[R_IMPACT]):
+            deepest = buf.depth[r]
+    return deepest
+
+
+@njit(**JIT)
+def new_contact_depths2d(bodies, rc, x, angle, P, L):
+    buf = rc.buf
+    active = rc.active
     cur = active.current[0]
     deepest = -np.inf
     for r in range(buf.count[0]):
-        if table_find(active, cur, buf.feature[r]) >= 0:
+        if buf.depth[r] <= deepest:
             continue
-        if buf.depth[r] > deepest:
+        a = buf.a[r]
+        b = buf.b[r]
+        px, py = buf.point[r, 0], buf.point[r, 1]
+        wa = L[a] * bodies.inv_moment[a]
+        vax = P[a, 0] * bodies.inv_mass[a] - wa * (py - x[a, 1])
+        vay = P[a, 1] * bodies.inv_mass[a] + wa * (px - x[a, 0])
+        vbx = vby = 0.0
+        if b >= 0:
+            wb = L[b] * bodies.inv_moment[b]
+            vbx = P[b, 0] * bodies.inv_mass[b] - wb * (py - x[b, 1])
+            vby = P[b, 1] * bodies.inv_mass[b] + wb * (px - x[b, 0])
+        vn = (vbx - vax) * buf.normal[r, 0] + (vby - vay) * buf.normal[r, 1]
+        if _is_new_event(active, cur, buf.feature[r], vn, rc.par[R_IMPACT]):
             deepest = buf.depth[r]
     return deepest
 
@@ -1137,6 +1208,12 @@ class ImpulseLcpStepper:
             return collision_impulses3d(b, self.arg, state.x, state.rot, state.P, state.L)
         return collision_impulses2d(b, self.arg, state.x, state.rot, state.P, state.L)
 
+    def _new_depth(self, state) -> float:
+        b = self.model.bodies
+        if self.dimension == 3:
+            return new_contact_depths3d(b, self.arg, state.x, state.rot, state.P, state.L)
+        return new_contact_depths2d(b, self.arg, state.x, state.rot, state.P, state.L)
+
     def _max_dt(self, state) -> float:
         b = self.model.bodies
         if self.dimension == 3:
@@ -1182,7 +1259,7 @@ class ImpulseLcpStepper:
             self._copy(y0, state)
             self._integrate(state, tau)
             self._detect(state)
-            if new_contact_depths(self.buf, self.arg.active) <= tol_p:
+            if self._new_depth(state) <= tol_p:
                 left -= tau
                 continue
             # a new contact went deeper than the tolerance: bisect back to its time of impact
@@ -1195,7 +1272,7 @@ class ImpulseLcpStepper:
                 self._copy(state, y0)
                 self._integrate(state, mid)
                 self._detect(state)
-                deepest = new_contact_depths(self.buf, self.arg.active)
+                deepest = self._new_depth(state)
                 if deepest > tol_p:
                     hi = mid
                 else:
