@@ -282,8 +282,8 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpe
         wf.done()
     inflow_sides = [s for s in SIDES_2D if walls[s] == "inflow"]
     if len(inflow_sides) > 1:
-        raise f.error(f"walls.{inflow_sides[1]}", "at most one \"inflow\" side",
-                      walls[inflow_sides[1]])
+        raise wf.error(inflow_sides[1], "at most one \"inflow\" side",
+                       walls[inflow_sides[1]])
     inflow = None
     inf = f.sub("inflow", None)
     if inf is not None and not inflow_sides:
@@ -369,7 +369,7 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpe
     output = OutputSpec()
     of = f.sub("output", None)
     if of is not None:
-        names = of.string_list("fields", ("u", "v", "phi"))
+        names = of.string_list("fields", ["u", "v", "phi"])
         for i, name in enumerate(names):
             if name not in OUTPUT_FIELDS:
                 raise CaseError(of.file, f"{of.field('fields')}[{i}]",
@@ -385,7 +385,8 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpe
                             of.number("probe_x", None, nonnegative=True, unit="m"), forces)
         of.done()
     if output.forces.enabled and not obstacles:
-        raise f.error("output.forces", "obstacles to measure forces on (fluid.obstacles)", True)
+        raise of.error("forces", "obstacles to measure forces on (fluid.obstacles or "
+                       "[[statics]])", True)
     # Cut-cell walls and an inflow need the implicit viscous step: the ghost-fluid Dirichlet
     # condition of a wall a small fraction theta of a cell away has a 1/theta coefficient, which
     # an explicit step would pay for with steps theta times shorter.
