@@ -269,6 +269,19 @@ def strouhal(t: np.ndarray, lift: np.ndarray, d: float, u: float) -> tuple[float
     return d * periods / (u * (tc[-1] - tc[0])), periods
 
 
+def peak(values: np.ndarray) -> float:
+    """The largest value of a sampled smooth signal: the largest sample refined by the parabola
+    through it and its two neighbours (sampling a sine 30 times a period misses its peak by
+    0.5 %; the parabola by 0.002 %)."""
+    v = np.asarray(values, float)
+    k = int(np.argmax(v))
+    if k == 0 or k == v.shape[0] - 1:
+        return float(v[k])
+    a, b, c = v[k - 1], v[k], v[k + 1]
+    den = a - 2 * b + c
+    return float(b - 0.125 * (c - a) ** 2 / den) if den < 0 else float(b)
+
+
 def dfg_metrics(scene: Any, record: Any, name: str, params: dict) -> dict[str, float]:
     """The DFG benchmark's quantities against the published intervals (Schafer & Turek 1996).
 
@@ -277,8 +290,9 @@ def dfg_metrics(scene: Any, record: Any, name: str, params: dict) -> dict[str, f
     c_D over the last tenth of the run, says how steady the run ended.
     2D-2 (periodic): ``drag_coefficient_max``, ``lift_coefficient_max`` and ``strouhal_number``
     over the samples after ``reference.params.settle_time`` (s; default: the second half of the
-    run), with ``periods`` the number of whole lift periods they span (fewer than 3: the
-    Strouhal number is not reported as measured, it is infinite).
+    run), the maxima refined between samples (:func:`peak`), with ``periods`` the number of
+    whole lift periods they span (fewer than 3: the Strouhal number is not measured, it is
+    infinite).
     """
     case = SCHAFER_TUREK[name][0]
     refs, _ = dfg_reference(case)
@@ -295,9 +309,9 @@ def dfg_metrics(scene: Any, record: Any, name: str, params: dict) -> dict[str, f
         return out
     settle = float(params.get("settle_time", 0.5 * t[-1]))
     sel = t >= settle
-    _compare(out, "drag_coefficient_max", float(np.max(cd[sel])) if sel.any() else math.nan,
+    _compare(out, "drag_coefficient_max", peak(cd[sel]) if sel.any() else math.nan,
              refs["drag_coefficient_max"])
-    _compare(out, "lift_coefficient_max", float(np.max(cl[sel])) if sel.any() else math.nan,
+    _compare(out, "lift_coefficient_max", peak(cl[sel]) if sel.any() else math.nan,
              refs["lift_coefficient_max"])
     _, _, d, u = dfg_cylinder(scene.fluid)
     st, periods = strouhal(t[sel], cl[sel], d, u) if sel.sum() > 2 else (math.nan, 0)

@@ -226,7 +226,15 @@ class FluidState:
             solid = self._ramped(self.static_boundary, self.time + dt)
         bnd = self.boundary = solid
         t0 = time.perf_counter()
-        up, vp = self.pad(self.u, self.v)
+        if bnd.cut:
+            # advection reads the solid's velocity at the samples inside it (the projection
+            # moves a cut face whose sample is inside; that value is the open part's mean
+            # flux, not a velocity to carry the fluid with: measured on the dam break over a
+            # block, it doubled the volume error, 1.5 % against 0.6 %)
+            up, vp = self.pad(np.where(bnd.u_dist < 0.0, bnd.u_solid, self.u),
+                              np.where(bnd.v_dist < 0.0, bnd.v_solid, self.v))
+        else:
+            up, vp = self.pad(self.u, self.v)
         dist = bnd.c_dist if bnd.cut else self.no_dist
         args = (up, vp, dt, dx, self.lx, self.ly, bnd.cells, bnd.has_cells, dist, bnd.cut)
         mac = self.scheme.advection == "maccormack"
@@ -410,7 +418,7 @@ class FluidState:
             "fluid_cells": float(np.count_nonzero(fluid)),
         }
         if self.has_surface:
-            out["volume"] = LS.fluid_area(self.phi, solid, dx)
+            out["volume"] = LS.fluid_area(self.phi, solid, dx, self.boundary.fluid_area)
             out["front"] = float(LS.front_position(self.phi, 0, dx))
             px = self.spec.output.probe_x
             gx = 0.0 if px is None else min(max(px / dx - 0.5, 0.0), self.nx - 1.0)
