@@ -19,7 +19,8 @@ of chi - the body's area`` (chi = 1 on the body), the first by the midpoint rule
 weight does not depend on how its cut cells are drawn). The weight is
 ``chi = S((d - d0) / (d1 - d0))`` of the body's own signed distance ``d``, with ``S`` the C2
 quintic step from 1 to 0: ``d0`` and ``d1`` (m from the surface) set the ring. The result does
-not depend on the window in the exact solution; the grid-convergence benchmark (benchmarks/bench_dfg.py) measures how much it does on a grid.
+not depend on the window in the exact solution; the grid-convergence benchmark
+(benchmarks/bench_dfg.py) measures how much it does on a grid.
 
 Also here: the pressure on a body's surface at a point, by a least-squares quadratic fit of the
 pressure in the fluid cells around it (the DFG pressure difference between the front and back
