@@ -283,9 +283,9 @@ def test_the_central_scheme_refuses_a_free_surface_as_data():
 
 # -- the DFG benchmark at the case file's resolution ----------------------------------------
 def test_dfg_2d1_against_the_published_values(fluid_case):
-    """10 cells across the cylinder, 6 s (about 12 s of run time): the drag coefficient within
-    0.4 % of the reference, the lift and the pressure difference within their case limits; the
-    grid convergence is benchmarks/bench_dfg.py's."""
+    """10 cells across the cylinder, 12 s of flow (10 to 30 s to run): the drag coefficient
+    within 0.4 % of the reference, the lift and the pressure difference within their case
+    limits, both steady; the grid convergence is benchmarks/bench_dfg.py's."""
     from crosscheck.sim.fluid import run_fluid
 
     scene = fluid_case("dfg_2d1")
@@ -295,7 +295,8 @@ def test_dfg_2d1_against_the_published_values(fluid_case):
     assert m["drag_coefficient_error"] < 0.005
     assert m["lift_coefficient_error"] < 0.10
     assert m["pressure_difference_error"] < 0.15
-    assert m["drag_coefficient_drift"] < 1e-4
+    assert m["drag_coefficient_drift"] < 1e-5 and m["lift_coefficient_drift"] < 1e-3
     for metric in ("drag_coefficient_error", "lift_coefficient_error",
-                   "pressure_difference_error", "drag_coefficient_drift"):
+                   "pressure_difference_error", "drag_coefficient_drift",
+                   "lift_coefficient_drift"):
         assert m[metric] <= scene.tolerances[metric].limit("inhouse", "central")
