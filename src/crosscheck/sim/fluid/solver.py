@@ -299,11 +299,17 @@ class FluidState:
                 k_total = nu * dt / (dx * dx)
                 if self.implicit:
                     walls = bnd.cut and spec.no_slip
+                    # Crank-Nicolson with the Eulerian convection (second order in time with
+                    # Adams-Bashforth 2); backward Euler after a semi-Lagrangian trace, whose
+                    # explicit half would belong at the departure points
+                    cn = self.scheme.advection == "central"
                     self.last_viscous_iterations = (
                         diffuse_implicit(un, self.ustate, bnd.u_dist if walls else None,
-                                         bnd.u_solid, k_total, 0, self.gu)
+                                         bnd.u_solid, k_total, 0, self.gu,
+                                         self.u if cn else None)
                         + diffuse_implicit(vn, self.vstate, bnd.v_dist if walls else None,
-                                           bnd.v_solid, k_total, 1, self.gv))
+                                           bnd.v_solid, k_total, 1, self.gv,
+                                           self.v if cn else None))
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):

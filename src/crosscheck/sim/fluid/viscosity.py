@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.fluid.pressure import SOLID, pcg
+from crosscheck.sim.fluid.pressure import SOLID, _matvec, pcg
 
 # closest a wall may be to a sample, in cells (the diagonal grows as 1/theta)
 THETA_MIN = 1e-2
@@ -118,13 +118,16 @@ def _scatter_solid(q, index, x, dist, use_dist, qsolid, state):
                 q[i, j] = qsolid[i, j]
 
 
-def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost):
-    """One backward-Euler viscous step of the component ``q`` in place; ``dist`` the solid's
-    signed distance at the samples (None: staircase walls), ``qsolid`` the solid's velocity
-    component there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``. Returns the CG iterations."""
+def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None):
+    """One viscous step of the component ``q`` in place: backward Euler, or with ``q_old`` (the
+    component at the start of the step) Crank-Nicolson, ``(I - k/2 L) q = q + k/2 L q_old``,
+    the explicit half through the same ghost-fluid stencil. ``dist`` the solid's signed
+    distance at the samples (None: staircase walls), ``qsolid`` the solid's velocity component
+    there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``. Returns the CG iterations."""
     use_dist = dist is not None
     d = dist if use_dist else np.zeros((1, 1))
-    index, diag, xm, xp, ym, yp, w, b = build_viscous(q, state, d, use_dist, qsolid, k,
+    kk = k if q_old is None else 0.5 * k
+    index, diag, xm, xp, ym, yp, w, b = build_viscous(q, state, d, use_dist, qsolid, kk,
                                                       normal_axis, *ghost)
     if diag.shape[0] == 0:
         return 0
@@ -132,6 +135,14 @@ def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost):
     # warm start: the advected values
     for_idx = index >= 0
     x[index[for_idx]] = q[for_idx]
+    if q_old is not None:
+        # A x = b is (I/kk - L) x = q/kk + D (D: the walls' and known neighbours' part of L);
+        # Crank-Nicolson adds L q_old = D + q_old/kk - A q_old to the right-hand side
+        xo = np.empty_like(x)
+        xo[index[for_idx]] = q_old[for_idx]
+        axo = np.empty_like(x)
+        _matvec(diag, xm, xp, ym, yp, w, w, w, w, xo, axo)
+        b = 2.0 * b - x / kk + xo / kk - axo
     bmax = float(np.max(np.abs(b)))
     its = pcg(diag, xm, xp, ym, yp, w, w, w, w, b, x, max(VISCOUS_TOLERANCE * bmax, 1e-300),
               1000)
