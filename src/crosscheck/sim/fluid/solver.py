@@ -157,6 +157,7 @@ class FluidState:
         # state does not depend on the step and the no-slip walls hold after the projection
         self.implicit = spec.viscosity_solver == "implicit"
         self.incremental = self.implicit and spec.kinematic_viscosity > 0.0
+        self.p_increment = np.zeros((self.nx, self.ny))
         self.no_dist = np.zeros((1, 1))
         # the central scheme: Eulerian convection, Adams-Bashforth 2 with the previous step's term
         self.conv_prev: tuple[np.ndarray, np.ndarray] | None = None
@@ -320,10 +321,12 @@ class FluidState:
             timers["forces"] += t3 - t2
 
             if self.incremental:
-                pt = np.zeros_like(self.p)     # the increment; it vanishes in a steady state
+                # the increment (it vanishes in a steady state), warm-started from the last one
+                pt = self.p_increment * scale
                 its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
                                     spec.pressure_tolerance)
-                self.p = self.p + pt / scale
+                self.p_increment = pt / scale
+                self.p = self.p + self.p_increment
             else:
                 pt = self.p * scale
                 its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
