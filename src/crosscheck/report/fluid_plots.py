@@ -1,5 +1,13 @@
 """Figures of a fluid run for the HTML report: free-surface frames, the validation plot against
-the case's reference, and a short animation of the surface."""
+the case's reference, and a short animation of the surface where it moves.
+
+Files in the run's plot folder, palette PNGs (crosscheck.report.figure.png). The page embeds the
+validation plot (the one that answers "does it match the reference?", or the frames when the
+case has none) and links the frames and the animation: they are the heavy part and a reader
+who wants them clicks. The animation is made only where the surface moves by at least
+:data:`MOVES_CELLS` cells: a tank at rest, or a 5 mm sloshing wave on a 16 mm grid, animates
+into a still picture that would only add weight.
+"""
 
 from __future__ import annotations
 
@@ -20,7 +28,23 @@ from crosscheck.reference.fluid_data import (  # noqa: E402
     load_table,
     sloshing_period,
 )
+from crosscheck.report.atomic import write_bytes  # noqa: E402
+from crosscheck.report.figure import png  # noqa: E402
 from crosscheck.sim.fluid.levelset import surface_lines  # noqa: E402
+
+DPI = 90
+MOVES_CELLS = 2.0
+# The figure the page embeds (the rest are linked): the validation plot, else the frames.
+EMBED_ORDER = ("-validation.png", "-frames.png")
+
+
+def embedded(paths: list[str]) -> str | None:
+    """Of a fluid run's plot files, the one the page shows inline (the others are linked)."""
+    for suffix in EMBED_ORDER:
+        for p in paths:
+            if str(p).endswith(suffix):
+                return p
+    return None
 
 
 def _stem(scene: Any, record: Any) -> str:
@@ -114,8 +138,7 @@ def plot_frames(scene: Any, record: Any, outdir: Path, n: int = 6) -> Path:
         ax.axis("off")
     fig.suptitle(f"{scene.name} ({record.meta.get('integrator')})", fontsize=9)
     fig.tight_layout()
-    path = outdir / f"{_stem(scene, record)}-frames.png"
-    fig.savefig(path, dpi=110)
+    path = write_bytes(outdir / f"{_stem(scene, record)}-frames.png", png(fig, DPI))
     plt.close(fig)
     return path
 
@@ -185,15 +208,27 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
     ax[0].set_title(text, fontsize=7)
     ax[0].legend(fontsize=7)
     fig.tight_layout()
-    path = outdir / f"{_stem(scene, record)}-validation.png"
-    fig.savefig(path, dpi=110)
+    path = write_bytes(outdir / f"{_stem(scene, record)}-validation.png", png(fig, DPI))
     plt.close(fig)
     return path
 
 
+def surface_motion(record: Any) -> float:
+    """How far the free surface moved, in cells: the largest number of cells whose wet state
+    differs from the first frame, over the frames, divided by the grid's width in cells (a
+    surface displaced by h cells across the whole width changes h cells per column)."""
+    phi = record.fields["phi"]
+    wet0 = np.asarray(phi[0], float) < 0
+    changed = max(int(np.count_nonzero((np.asarray(f, float) < 0) != wet0)) for f in phi)
+    return changed / wet0.shape[0]
+
+
 def animate(scene: Any, record: Any, outdir: Path, max_frames: int = 40) -> Path | None:
-    """A short GIF of the free surface (free-surface cases with enough frames only)."""
+    """A short GIF of the free surface: free-surface cases with enough frames whose surface
+    moves by at least MOVES_CELLS cells."""
     if not scene.fluid.has_surface or len(record.field_t) < 5 or "phi" not in record.fields:
+        return None
+    if surface_motion(record) < MOVES_CELLS:
         return None
     from matplotlib.animation import FuncAnimation, PillowWriter
 
