@@ -22,7 +22,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from crosscheck.compare import fluid_metrics as FM  # noqa: E402
-from crosscheck.reference.fluid_data import load_table, sloshing_period  # noqa: E402
+from crosscheck.reference.fluid_data import (  # noqa: E402
+    SCHAFER_TUREK,
+    dfg_reference,
+    load_table,
+    sloshing_period,
+)
 from crosscheck.report.atomic import write_bytes  # noqa: E402
 from crosscheck.report.figure import png  # noqa: E402
 from crosscheck.sim.fluid.levelset import surface_lines  # noqa: E402
@@ -72,11 +77,53 @@ def _draw_frame(ax, scene, record, k: int) -> None:
         y = (np.arange(ny) + 0.5) * dx
         if np.any(speed > 0):
             ax.streamplot(x, y, uc.T, vc.T, color="white", density=1.0, linewidth=0.5)
+    _draw_obstacles(ax, spec)
     ax.set_xlim(0, spec.domain[0])
     ax.set_ylim(0, spec.domain[1])
     ax.set_aspect("equal")
     ax.set_title(f"t = {record.field_t[k]:.3g} s", fontsize=8)
     ax.tick_params(labelsize=6)
+
+
+def _draw_obstacles(ax, spec) -> None:
+    """The obstacles' outlines: the zero contour of their signed distance on a grid four times
+    finer than the fluid's (any shape, turned or not)."""
+    if not spec.obstacles:
+        return
+    from crosscheck.sim.fluid.cutcell import union_distance
+
+    nx, ny = spec.resolution
+    h = spec.dx / 4
+    x = (np.arange(4 * nx) + 0.5) * h
+    y = (np.arange(4 * ny) + 0.5) * h
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    d = union_distance(spec.obstacles, np.stack([X, Y], axis=-1))
+    ax.contourf(x, y, d.T, levels=[-np.inf, 0.0], colors=["0.55"])
+    ax.contour(x, y, d.T, levels=[0.0], colors=["k"], linewidths=0.6)
+
+
+def _plot_dfg(ax, scene, record, name) -> None:
+    """The DFG benchmark: drag and lift coefficients against time with the published intervals
+    (2D-1: the reference value; 2D-2: the maxima's intervals)."""
+    case = SCHAFER_TUREK[name][0]
+    refs, _ = dfg_reference(case)
+    cd, cl = FM.force_coefficients(scene, record)
+    key_d, key_l = (("drag_coefficient", "lift_coefficient") if case == "2D-1"
+                    else ("drag_coefficient_max", "lift_coefficient_max"))
+    ax.plot(record.t, cd, color="C0", label="c_D")
+    ax.axhspan(refs[key_d].lower, refs[key_d].upper, color="C0", alpha=0.3,
+               label=f"{key_d} published")
+    lo, hi = refs[key_d].lower, refs[key_d].upper
+    ax.set_ylim(min(lo, np.min(cd[len(cd) // 4:])) - 0.1, max(hi, np.max(cd[len(cd) // 4:])) + 0.1)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("drag coefficient", color="C0")
+    ax2 = ax.twinx()
+    ax2.plot(record.t, cl, color="C1", lw=0.8, label="c_L")
+    ax2.axhspan(refs[key_l].lower, refs[key_l].upper, color="C1", alpha=0.3)
+    ax2.set_ylabel("lift coefficient", color="C1")
+    if case == "2D-1":
+        span = max(0.01, 2 * np.max(np.abs(cl[len(cl) // 2:] - refs[key_l].target)))
+        ax2.set_ylim(refs[key_l].target - span, refs[key_l].target + span)
 
 
 def plot_frames(scene: Any, record: Any, outdir: Path, n: int = 6) -> Path:
@@ -151,6 +198,8 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
+    elif name in SCHAFER_TUREK:
+        _plot_dfg(ax[0], scene, record, name)
     else:
         plt.close(fig)
         return None
