@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 OUT ?= reports/latest
 WORKERS ?= 2
 
-.PHONY: run test install bench lint clean
+.PHONY: run test install bench lint clean browser
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,7 +21,18 @@ install: $(STAMP)
 run: $(STAMP)
 	$(BIN)/crosscheck run cases --out $(OUT) --workers $(WORKERS) --baseline reports/baseline.json
 
-test: $(STAMP)
+# Headless Chromium for the report's browser test (tests/report/test_browser.py): Debian's
+# package, installed where missing (as root, else through sudo). Where it cannot be installed the
+# test says so: skipped on a developer's machine, failed under CI=true.
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || { \
+	  echo "make: installing Debian's chromium for the report's browser test"; \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium >/dev/null; } || \
+	  echo "make: could not install chromium: the browser test will say so"
+
+test: $(STAMP) browser
 	$(BIN)/python -m pytest -n $(WORKERS) -q
 
 bench: $(STAMP)

@@ -124,6 +124,7 @@ def baseline_from_results(results: dict[str, Any], *, source: str = "",
         "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "created": _now(),
         "crosscheck_version": results.get("crosscheck_version"),
         "source": {"results": source, "started": results.get("started"),
+                   "commit": results.get("commit"),
                    "machine": results.get("machine"), "engines": results.get("engines")},
         "slack": slack,
         "entries": dict(sorted(entries.items())),
@@ -273,6 +274,33 @@ def compare(baseline: dict[str, Any], results: dict[str, Any]) -> Comparison:
                 cmp.missing_cases.append(case)
     cmp.changed_cases = sorted(changed)
     return cmp
+
+
+def describe(baseline: dict[str, Any], results: dict[str, Any]) -> dict[str, Any]:
+    """What a run was compared against, for the reports: when and from which code the baseline
+    was made (created, crosscheck version, commit, the source run's start and machine), its
+    engine versions, how many of the run's cells it holds, and every engine whose version
+    differs from this run's (``{engine: {"baseline": old, "run": new}}``), since numbers may
+    move for that reason alone. A baseline made before commits were recorded has none."""
+    source = baseline.get("source") or {}
+    entries = baseline.get("entries") or {}
+    old_engines = source.get("engines") or {}
+    new_engines = results.get("engines") or {}
+    changes = {name: {"baseline": old_engines.get(name), "run": new_engines.get(name)}
+               for name in sorted(set(old_engines) | set(new_engines))
+               if name in old_engines and name in new_engines
+               and old_engines[name] != new_engines[name]}
+    machine = source.get("machine") or {}
+    return {
+        "source": {"created": baseline.get("created"),
+                   "crosscheck_version": baseline.get("crosscheck_version"),
+                   "commit": source.get("commit"), "started": source.get("started"),
+                   "machine": {k: machine.get(k) for k in ("hostname", "platform")
+                               if machine.get(k)},
+                   "engines": old_engines},
+        "compared": sum(1 for c in results.get("cells", []) if cell_key(c) in entries),
+        "engine_changes": changes,
+    }
 
 
 def _fmt(value) -> str:

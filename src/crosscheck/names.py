@@ -95,7 +95,7 @@ RIGID: dict[str, tuple[IntegratorInfo, ...]] = {
 # Grid-fluid schemes (crosscheck.sim.fluid.INTEGRATORS, in its order): fluid scenes only.
 FLUID: dict[str, tuple[str, ...]] = {
     "inhouse": ("semi_lagrangian", "maccormack", "particle_levelset",
-                "particle_levelset_maccormack"),
+                "particle_levelset_maccormack", "central"),
 }
 
 ENGINES: tuple[str, ...] = tuple(RIGID)

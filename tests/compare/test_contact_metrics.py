@@ -270,15 +270,44 @@ def test_2d_boxes_and_polygons_match_the_minkowski_difference():
         assert got == pytest.approx(expected, abs=1e-12)
 
 
-def test_a_pair_type_without_an_exact_depth_is_not_measurable():
-    statics = """
+WALL = """
 [[statics]]
 name = "wall"
 shape = { box = { size = [0.1, 1, 1] } }
 position = [1, 0, 0.5]
 """
+
+
+def test_a_capsule_against_a_box_is_measured_by_fcl_to_the_minkowski_depth():
+    # No closed form: FCL's EPA. A capsule is a segment swelled by r, so where its segment
+    # crosses the box the depth is the segment-box Minkowski depth plus r, exactly.
+    r, length = 0.05, 0.2
+    scene = load(case(body("pill", f"{{ capsule = {{ radius = {r}, length = {length} }} }}",
+                           "[0, 0, 0.5]"), statics=WALL, ground=None, gravity="[0, 0, 0]"))
+    box = np.array([[x, y, z] for x in (0.95, 1.05) for y in (-0.5, 0.5) for z in (0.0, 1.0)])
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(40):
+        q = _random_quat(rng)
+        # the segment's middle inside the wall: the segment crosses it
+        x = np.array([rng.uniform(0.96, 1.04), rng.uniform(-0.3, 0.3), rng.uniform(0.3, 0.7)])
+        axis = quat_to_matrix(q)[:, 2]
+        ends = np.array([x - 0.5 * length * axis, x + 0.5 * length * axis])
+        segment_depth = _hull_depth((ends[:, None] - box[None]).reshape(-1, 3))
+        assert segment_depth > 0
+        expected = segment_depth + r
+        got = metrics(scene, still(scene, T20[:2], [x], quat=q))["penetration_max"].value
+        assert got == pytest.approx(expected, abs=2e-6)  # EPA on a curved surface: 1e-6 m
+        checked += 1
+    assert checked == 40
+
+
+def test_a_pair_type_without_a_depth_method_is_not_measurable(monkeypatch):
+    from crosscheck.compare import convex_gap
+
+    monkeypatch.setattr(convex_gap, "available", lambda: False)  # as without FCL
     scene = load(case(body("pill", "{ capsule = { radius = 0.05, length = 0.2 } }",
-                           "[0, 0, 0.15]"), statics=statics))
+                           "[0, 0, 0.15]"), statics=WALL))
     ms = metrics(scene, still(scene, T20, [[0.0, 0.0, 0.15]]))
     for name in ("penetration_max", "penetration_resting_mean"):
         assert ms[name].value is None

@@ -299,3 +299,33 @@ def test_set_state_places_what_read_returns(engine, text, integrator):
     finally:
         a.close()
         b.close()
+
+
+def _timed(samples):
+    from crosscheck.engines.driver import Cost
+
+    return Cost(steps=100, simulated=0.1, wall=list(samples), cpu=list(samples)).to_dict()
+
+
+def test_pooled_cost_keeps_a_process_offset_inside_its_spread():
+    from crosscheck.engines.driver import merge_costs
+
+    # Three processes, each steady to 1 % inside, one of them 10 % slower: the within-process
+    # spread alone (about 1 %) would not cover a rerun landing in the slow process.
+    a = _timed([1.00, 1.01, 1.00, 1.01])
+    b = _timed([1.10, 1.11, 1.10, 1.11])
+    c = _timed([1.00, 1.00, 1.01, 1.01])
+    m = merge_costs([a, b, c])
+    assert m["processes"] == 3 and m["repeats"] == 12
+    assert m["wall_min"] == 1.00 and m["per_simulated_second"] == pytest.approx(10.0)
+    medians = [1.005, 1.105, 1.005]
+    assert m["process_medians"] == pytest.approx(medians)
+    assert m["between_processes"] == pytest.approx(0.1 / m["wall_median"])
+    assert m["spread"] == max(m["between_processes"], m["within_process"])
+    assert m["spread"] > 0.09  # every process median lies within the spread of the pooled one
+    for med in medians:
+        assert abs(med - m["wall_median"]) / m["wall_median"] <= m["spread"]
+    # a part that timed nothing is left out; one part alone is that part
+    empty = {"steps": 100, "simulated_time": 0.1, "repeats": 0, "note": "nothing was timed"}
+    assert merge_costs([a, empty])["processes"] == 1
+    assert merge_costs([a])["wall_samples"] == a["wall_samples"]

@@ -108,11 +108,13 @@ def test_capabilities_and_not_applicable():
     caps = engine.capabilities()
     assert caps.integrators == INTEGRATORS and caps.default_integrator == "multibody"
     assert caps.dimensions == {2, 3}
-    assert "contact" in caps.effects  # 3D: tests/engines/test_pybullet_contact.py
+    assert "contact" in caps.effects  # tests/engines/test_pybullet_contact.py
+    # 2D contact: the planar chain only (a maximal 2D body leaves the plane in contact)
     contact = _scene(2, 0.01, 1e-3, _body2d(), effects="contact = true")
-    assert "2D contact" in engine.not_applicable(contact, "multibody")
+    assert engine.not_applicable(contact, "multibody") is None
+    assert "2D contact needs the planar chain" in engine.not_applicable(contact, "maximal")
     with pytest.raises(EngineUnavailable, match="2D contact"):
-        engine.run(contact, "multibody", 1e-3)
+        engine.run(contact, "maximal", 1e-3)
     plain = _scene(3, 0.01, 1e-3, _body3d())
     assert "rk4" in engine.not_applicable(plain, "rk4")
     assert engine.not_applicable(plain, "maximal") is None

@@ -83,14 +83,14 @@ def test_viscosity_units():
 
 
 # -- pressure ------------------------------------------------------------------------------
-def _scipy_matrix(diag, xm, xp, ym, yp):
+def _scipy_matrix(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp):
     n = diag.shape[0]
     rows, cols, vals = list(range(n)), list(range(n)), list(diag)
-    for nb in (xm, xp, ym, yp):
+    for nb, w in ((xm, wxm), (xp, wxp), (ym, wym), (yp, wyp)):
         k = np.flatnonzero(nb >= 0)
         rows += k.tolist()
         cols += nb[k].tolist()
-        vals += [-1.0] * k.shape[0]
+        vals += (-w[k]).tolist()
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
@@ -106,13 +106,14 @@ def test_mic0_pcg_matches_direct_solve_with_free_surface_and_obstacle():
     v = rng.standard_normal((n, n + 1))
     opens = np.array([False, False, False, True])
     bnd = SolidBoundary.from_cells(solid, opens)
-    idx, diag, xm, xp, ym, yp, b, ndir = P.build_system(phi, solid, bnd.u_frac, bnd.v_frac, u, v)
+    system = P.build_system(phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
+    idx, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, ndir = system
     assert ndir > 0
-    A = _scipy_matrix(diag, xm, xp, ym, yp)
+    A = _scipy_matrix(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
     assert abs(A - A.T).max() == 0                   # symmetric
     ref = spla.spsolve(A.tocsc(), b)
     sol = np.zeros_like(b)
-    its = P.pcg(diag, xm, xp, ym, yp, b, sol, 1e-12, 1000)
+    its = P.pcg(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, sol, 1e-12, 1000)
     assert 0 < its < 200
     assert np.max(np.abs(sol - ref)) < 1e-9 * max(1.0, np.max(np.abs(ref)))
 
@@ -196,7 +197,7 @@ def test_adapter_step_is_a_cap_unless_fixed(fluid_case):
 
 def test_integrator_registry(fluid_case):
     assert set(INTEGRATORS) == {"semi_lagrangian", "maccormack", "particle_levelset",
-                                "particle_levelset_maccormack"}
+                                "particle_levelset_maccormack", "central"}
     with pytest.raises(ValueError):
         run_fluid(fluid_case("tank_at_rest"), "rk4")
 
@@ -288,7 +289,7 @@ def test_advection_kernel_translates_exactly_linear_fields():
     out, lo, hi = np.empty_like(q), np.empty_like(q), np.empty_like(q)
     act = np.ones((n + 1, n + 1), bool)
     K.advect(q, -0.5, -0.5, 0.5, 0.5, out, lo, hi, act, q, up, vp, 0.05, dx, 1.0, 1.0,
-             np.zeros((n, n), bool), False)
+             np.zeros((n, n), bool), False, np.zeros((1, 1)), False)
     inner = (X > 0.1) & (X < 0.9) & (Y > 0.1) & (Y < 0.9)
     assert np.allclose(out[inner], (q - 0.05 * (2 * 0.3 + 3 * -0.2))[inner])
 

@@ -166,7 +166,6 @@ def test_the_contact_flags_agree_with_what_each_adapter_can_simulate():
     # whether it maps contact at all. They must agree, else the registry lies to the runner.
     from crosscheck.engines import get_engine
     from crosscheck.names import RIGID
-
     from crosscheck.sim.rigid.contact_models import CONTACT_KERNELS
 
     for engine, infos in RIGID.items():

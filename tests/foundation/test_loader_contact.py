@@ -431,15 +431,15 @@ def test_bad_2d_contact_input_is_refused(mutate, field, expected):
     refused(case, field, expected)
 
 
-def test_statics_in_a_fluid_case_are_refused():
-    text = (CASES / "fluid" / "tank_at_rest.toml").read_text()
-    text = text.replace("[effects]\n", "[effects]\ncontact = true\n") + (
+def test_statics_in_a_fluid_case_are_its_obstacles():
+    """Issue 14: a fluid case's statics are obstacles in the fluid (cut cells), named as the
+    statics are, after the [fluid] section's own; they need no contact there."""
+    text = (CASES / "fluid" / "tank_at_rest.toml").read_text() + (
         '\n[[statics]]\nname = "rock"\nshape = { circle = { radius = 0.1 } }\n'
         "position = [0.5, 0.2]\n")
-    with pytest.raises(CaseError) as info:
-        load_case_text(text, name=NAME)
-    assert info.value.field == "statics" and "no [[statics]] in a case with [fluid]" in str(
-        info.value)
+    scene = load_case_text(text, name=NAME)
+    assert scene.fluid.obstacle_names == ("rock",)
+    assert scene.fluid.obstacles[0].signed_distance(np.array([0.5, 0.2])) == -0.1
 
 
 def test_a_body_may_be_called_ground_when_nothing_collides():

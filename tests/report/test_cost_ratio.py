@@ -24,24 +24,30 @@ def test_pairs_same_integrator_then_mujoco_default_and_never_across_steps_or_cas
     assert "a:inhouse-rk4@0.0005" not in r and "fluid:inhouse-semi_lagrangian@0.001" not in r
 
 
-def test_embedded_images_declare_the_type_of_their_bytes(tmp_path):
-    # The fluid adapter writes PNG frames and a GIF animation; a data URI must carry the type of
-    # what it holds, or strict viewers refuse the animation.
+def test_fluid_plots_one_embedded_with_its_type_the_heavy_ones_linked(tmp_path):
+    # The fluid adapter writes a validation plot, a frame sheet and a GIF animation: the page
+    # embeds the validation plot (a data URI carrying the type of what it holds) and links the
+    # frames and the animation, files in the report folder, by relative paths.
     import base64
     import re
 
     from crosscheck.report.html import render
     from crosscheck.report.results import new_document
 
-    png = tmp_path / "frames.png"
-    gif = tmp_path / "surface.gif"
-    png.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 16)
+    folder = tmp_path / "plots" / "c" / "inhouse-x-dt0.01"
+    folder.mkdir(parents=True)
+    validation, frames, gif = (folder / "c-x-validation.png", folder / "c-x-frames.png",
+                               folder / "c-x-surface.gif")
+    for path in (validation, frames):
+        path.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 16)
     gif.write_bytes(b"GIF89a" + b"\0" * 16)
     doc = new_document()
     doc["cells"] = [{"id": "c", "case": "c", "engine": "inhouse", "integrator": "x", "dt": 0.01,
-                     "status": "pass", "metrics": {}, "plots": [str(png), str(gif)]}]
-    html = render(doc, doc["cells"])
+                     "status": "pass", "metrics": {},
+                     "plots": [str(frames), str(validation), str(gif)]}]
+    html = render(doc, doc["cells"], tmp_path)
     found = re.findall(r'src="data:(image/[a-z+]+);base64,([A-Za-z0-9+/=]+)"', html)
-    kinds = {mime: base64.b64decode(data)[:6] for mime, data in found}
-    assert kinds["image/gif"] == b"GIF89a"
-    assert kinds["image/png"].startswith(b"\x89PNG")
+    assert [(mime, base64.b64decode(data)[:4]) for mime, data in found] == \
+        [("image/png", b"\x89PNG")]
+    assert "href='plots/c/inhouse-x-dt0.01/c-x-frames.png'>frames</a>" in html
+    assert "href='plots/c/inhouse-x-dt0.01/c-x-surface.gif'>animation</a>" in html

@@ -127,26 +127,32 @@ def test_results_json_schema(run_dir):
 def test_html_is_self_contained_and_embeds_its_plots(run_dir):
     _, out, _ = run_dir
     html = (out / "index.html").read_text()
-    images = re.findall(r'<img [^>]*src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
-    assert len(images) == 2  # one figure per case
-    for data in images:
-        assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
-    # Nothing loaded from elsewhere: no external scripts, styles or images.
-    assert not re.search(r'(src|href)="(?!data:|#)', html)
+    images = re.findall(r"""<img [^>]*src=["']data:image/(png|svg\+xml);base64,([A-Za-z0-9+/=]+)""",
+                        html)
+    assert len(images) == 4  # per case: the quantities over time, accuracy against cost
+    for kind, data in images:
+        head = base64.b64decode(data)[:8]
+        assert head == b"\x89PNG\r\n\x1a\n" if kind == "png" else head.startswith(b"<?xml")
+    # Nothing loaded from elsewhere: no external scripts, styles or images (links inside the
+    # page only; a fluid run would add relative links to files in the folder).
+    assert not re.search(r"""(src|href)=["'](?!data:|#)""", html)
     assert "cost (s/s, min +spread)" in html and "alpha" in html and "beta" in html
 
 
 def test_summary_lists_failures_before_passes_and_regressions_first(run_dir):
     _, out, outcome = run_dir
     text = (out / "summary.md").read_text()
-    rows = [line for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    # The table of every cell (the overview matrix comes first, tested in test_overview.py).
+    table = text.split("### Every cell", 1)[1]
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
     statuses = [r.split("|")[1].strip() for r in rows[1:]]
     assert statuses[:2] == ["**FAIL**", "**FAIL**"] and statuses[-1] == "n/a"
     doc = dict(outcome.doc)
     doc["cells"] = [dict(c) for c in doc["cells"]]
     target = next(c for c in doc["cells"] if c["id"] == "beta::inhouse-exact@dt=0.01")
     target["regression"] = ["position_error_max 0 -> 1"]
-    rows = [line for line in markdown.render(doc).splitlines() if line.startswith("| **")]
+    table = markdown.render(doc).split("### Every cell", 1)[1]
+    rows = [line for line in table.splitlines() if line.startswith("| **")]
     assert rows[0].startswith("| **REGRESSION** | beta | inhouse | exact")
 
 

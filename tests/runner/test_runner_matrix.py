@@ -114,8 +114,12 @@ def test_every_failure_mode_is_one_cells_result(tmp_path):
     doc = json.loads((tmp_path / "out" / "results.json").read_text())
     assert doc["counts"] == {"pass": 3, "error": 3, "timeout": 1}
     assert 0 < doc["resources"]["peak_rss_total_mb"] < 2048
-    lines = (tmp_path / "out" / "cells.jsonl").read_text().splitlines()
-    assert len(lines) == 7 + 2  # every cell and both reference runs, as they arrived
+    lines = [json.loads(x) for x in (tmp_path / "out" / "cells.jsonl").read_text().splitlines()]
+    runs = [r for r in lines if r.get("kind") != "cost"]
+    assert len(runs) == 7 + 2  # every cell and both reference runs, as they arrived
+    # and two more processes' cost passes of each timed cell (docs/metrics.md, "Cost")
+    timed = sum(bool((r.get("cost_detail") or {}).get("repeats")) for r in runs)
+    assert len(lines) - len(runs) == 2 * timed
 
 
 def test_blowup_and_unimportable_engine(tmp_path):
@@ -247,7 +251,9 @@ def test_workers_over_their_memory_cap_are_replaced(tmp_path):
                                                        '"fast_spin"] }', reference='kind = "none"',
                       tolerances="")
     er = refs(inhouse="exact")
-    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", engine_refs=er)
+    # (cost timed in the cell's own process only: extra cost tasks would recycle workers too)
+    matrix = build_matrix([load_case(case, er)], out=tmp_path / "out", engine_refs=er,
+                          cost={"processes": 1})
     backend = LocalBackend(1, max_worker_rss_mb=1.0)  # every worker is over 1 MiB
     outcome = run_and_report(matrix, backend, tmp_path / "out")
     assert [c["status"] for c in outcome.cells] == ["pass"] * 3

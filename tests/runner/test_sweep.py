@@ -110,6 +110,8 @@ def test_sweep_command_finds_the_largest_stable_step(tmp_path):
     best = data["target"]["cheapest"]
     assert best["dt"] == 0.005 and best["error"] <= 0.03
     assert (tmp_path / "sw" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
+    page = (tmp_path / "sw" / "sweep.html").read_text()  # the figure and the table, one page
+    assert page.count("<img ") == 1 and "<td>inhouse-unstable</td>" in page
     text = (tmp_path / "sw" / "sweep.md").read_text()
     assert "stability frontier" in text and "Target `position_error_max` <= 0.03" in text
 

@@ -18,8 +18,7 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-
+from crosscheck.commands._end_table import end_state_table
 from crosscheck.commands._json import add_json_flag, emit, human_output
 from crosscheck.errors import CrosscheckError
 
@@ -51,6 +50,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="skip the cost pass (timed stepping without recording): verdicts only")
     p.add_argument("--cost-repeats", type=int, default=None, metavar="N",
                    help="time each cell's stepping at least N times (default 3)")
+    p.add_argument("--cost-processes", type=int, default=None, metavar="K",
+                   help="spread each rigid cell's cost pass over K tasks run later in whichever "
+                        "worker is free, pooled so a process's own timing offset is inside the "
+                        "reported spread (default 3; 1 times the cell's own process only)")
     p.add_argument("--cost-seconds", type=float, default=None, metavar="S",
                    help="and for at least S seconds in all (default 0.2)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
@@ -89,7 +92,7 @@ def _engine_refs(items: list[str]) -> dict[str, str]:
 
 
 def _cost_option(args) -> bool | dict:
-    """--no-cost, --cost-repeats, --cost-seconds as build_matrix's ``cost``."""
+    """--no-cost, --cost-repeats, --cost-processes, --cost-seconds as build_matrix's ``cost``."""
     from crosscheck.runner.plan import UsageError
 
     if args.no_cost:
@@ -100,6 +103,11 @@ def _cost_option(args) -> bool | dict:
             raise UsageError("--cost-repeats: expected a positive integer, "
                              f"got {args.cost_repeats}")
         plan["min_repeats"] = args.cost_repeats
+    if args.cost_processes is not None:
+        if args.cost_processes < 1:
+            raise UsageError("--cost-processes: expected a positive integer, "
+                             f"got {args.cost_processes}")
+        plan["processes"] = args.cost_processes
     if args.cost_seconds is not None:
         if not args.cost_seconds >= 0:
             raise UsageError(f"--cost-seconds: expected seconds >= 0, got {args.cost_seconds}")
@@ -215,57 +223,3 @@ def _run(args) -> tuple[int, dict]:
           f"MiB); wall {res.get('wall_seconds')} s")
     print(f"reports: {Path(args.out) / 'index.html'}, results.json, summary.md, junit.xml")
     return outcome.exit_status, outcome.doc
-
-
-# -- the end-state table ---------------------------------------------------------------------------
-def _diff(a: dict, b: dict) -> tuple[float, float, float]:
-    """(max |dx|, max orientation angle, max |dv|) over bodies between two end states."""
-    from crosscheck.rotations import quat_angle_between
-
-    dx = float(np.max(np.linalg.norm(np.subtract(a["com"], b["com"]), axis=-1)))
-    dv = float(np.max(np.linalg.norm(np.subtract(a["vel"], b["vel"]), axis=-1)))
-    if a.get("rot_kind") == "quat":
-        dq = float(np.max(quat_angle_between(np.asarray(a["rot"]), np.asarray(b["rot"]))))
-    else:
-        d = np.subtract(a["rot"], b["rot"])
-        dq = float(np.max(np.abs(np.arctan2(np.sin(d), np.cos(d)))))
-    return dx, dq, dv
-
-
-def end_state_table(cells: list[dict]) -> str:
-    """Per case, each cell's final state against the reference's (or the case's first cell).
-
-    |dx|: largest centre-of-mass distance (m); dangle: largest orientation difference (rad,
-    geodesic); |dv|: largest velocity difference (m/s); over bodies, at the last common sample.
-    """
-    rows = [("case", "engine-integrator", "dt", "status", "t_end", "vs", "|dx| m", "dangle rad",
-             "|dv| m/s")]
-    by_case: dict[str, list[dict]] = {}
-    for c in cells:
-        by_case.setdefault(c["case"], []).append(c)
-    for case, group in by_case.items():
-        group = sorted(group, key=lambda c: (c["engine"], c["integrator"], c["dt"]))
-        first = next((c for c in group if c.get("end_state")), None)
-        for c in group:
-            end = c.get("end_state")
-            label = f"{c['engine']}-{c['integrator']}"
-            if not end:
-                rows.append((case, label, f"{c['dt']:g}", c["status"], "", "", "", "", ""))
-                continue
-            other, vs = c.get("reference_end"), "reference"
-            if not other and first is not None and first is not c:
-                other, vs = first["end_state"], f"{first['engine']}-{first['integrator']}"
-                if abs(other["t"] - end["t"]) > 1e-9 * max(1.0, end["t"]):
-                    other = None  # different end times: not comparable
-            if other and other.get("com") is not None:
-                try:
-                    vals = tuple("" if v != v else f"{v:.3g}"  # NaN: the reference lacks it
-                                 for v in _diff(end, other))
-                except (ValueError, TypeError):
-                    vals, vs = ("", "", ""), ""
-            else:
-                vals, vs = ("", "", ""), ""
-            rows.append((case, label, f"{c['dt']:g}", c["status"], f"{end['t']:.4g}", vs, *vals))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip()
-                     for r in rows)

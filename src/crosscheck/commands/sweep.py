@@ -2,9 +2,10 @@
 
 Runs the case at ``--dts`` (default: the case's dt times 4, 2, 1, 1/2, 1/4, 1/8) through the
 ordinary runner (isolated workers, the same metrics and reports in ``--out``), then writes
-``sweep.md``, ``sweep.json`` and ``sweep.png`` there: error against wall time (a Pareto plot),
-error against dt with the empirical order of convergence, and the largest stable step of each
-integrator (definitions in crosscheck.study.sweep and docs/reports.md).
+``sweep.md``, ``sweep.json``, ``sweep.png`` and ``sweep.html`` (the page: figure and table)
+there: error against wall time (a Pareto plot), error against dt with the empirical order of
+convergence, and the largest stable step of each integrator (definitions in
+crosscheck.study.sweep and docs/reports.md).
 """
 
 from __future__ import annotations
@@ -145,6 +146,7 @@ def _probe_matrix(scene, probes, out, refs, timeout, reference_dir):
 
 def _run(args) -> tuple[int, dict]:
     from crosscheck.commands.run import _engine_refs
+    from crosscheck.report import sweep_page
     from crosscheck.report.atomic import write_bytes, write_text
     from crosscheck.runner.cell import safe_name
     from crosscheck.runner.local import LocalBackend
@@ -236,9 +238,11 @@ def _run(args) -> tuple[int, dict]:
         summary["target"] = {"value": args.target, "metric": metric,
                              "cheapest": sweep.cheapest(series, args.target)}
     write_text(out / "sweep.json", json.dumps(summary, indent=1) + "\n")
-    write_bytes(out / "sweep.png", sweep.figure(scene.name, metric, series, args.target))
+    png = sweep.figure(scene.name, metric, series, args.target)
+    write_bytes(out / "sweep.png", png)
+    sweep_page.write(out, scene.name, text, png)
     print()
     print(text)
-    print(f"plots: {out / 'sweep.png'}; every cell: {out / 'index.html'}")
+    print(f"page: {out / 'sweep.html'} (plots: sweep.png); every cell: {out / 'index.html'}")
     # A sweep explores: blow-ups at large steps are findings, not failures.
     return (0 if not interrupted else 130), summary

@@ -23,11 +23,16 @@ Gap and penetration depth of a pair (m)
     * 3D box-box: the separating-axis test on the 15 axes (3 + 3 face normals, 9 edge-edge
       cross products): the minimum overlap is the exact penetration depth.
 
-    Any other body-body or body-static pair (capsule-box, a mesh against anything but the
-    ground, ...) makes both penetration metrics *not measurable*: value None, meaningful False
-    and the pair types named, never a silent 0. Body-body pairs are pruned once per sample by a
-    NumPy sort-and-sweep on the world bounding boxes (inflated by the contact tolerance), so a
-    pile of many bodies costs ``O(T (N log N + K))`` with no Python loop over pairs.
+    * any other 3D pair (capsule-box, capsule-capsule, cylinder-box, a mesh against a body or a
+      static, ...): FCL's signed distance (:mod:`crosscheck.compare.convex_gap`: EPA depth to
+      1e-6 m; a capsule's separation refined exactly; a mesh as its convex hull, as every engine
+      collides it).
+
+    Without FCL those pairs make both penetration metrics *not measurable*: value None,
+    meaningful False and the pair types named, never a silent 0. Body-body pairs are pruned
+    once per sample by a NumPy sort-and-sweep on the world bounding boxes (inflated by the
+    contact tolerance), so a pile of many bodies costs ``O(T (N log N + K))`` with no Python
+    loop over pairs.
 
 In contact, resting
     A pair is *in contact* at a sample when ``gap <= CONTACT_GAP_FRACTION * r`` (``r`` the
@@ -100,7 +105,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crosscheck.compare import scales
+from crosscheck.compare import convex_gap, scales
 from crosscheck.rotations import quat_to_matrix
 from crosscheck.scene.contact import GROUND
 from crosscheck.scene.model import Scene
@@ -208,6 +213,8 @@ def _pair_method(ka: str, kb: str, dimension: int) -> str | None:
         return "sat2"
     if dimension == 3 and ka == "box" and kb == "box":
         return "sat3"
+    if dimension == 3 and convex_gap.available():
+        return "fcl"
     return None
 
 
@@ -263,6 +270,8 @@ def pair_gap(shape_a, rot_a, origin_a, shape_b, rot_b, origin_b) -> np.ndarray:
     if method == "round-sdf":
         local = np.einsum("mji,mj->mi", rot_b, origin_a - origin_b)
         return shape_b.signed_distance(local) - shape_a.radius
+    if method == "fcl":
+        return convex_gap.gap(shape_a, rot_a, origin_a, shape_b, rot_b, origin_b)
     if method == "sat2":
         va = origin_a[:, None] + np.einsum("mij,kj->mki", rot_a, _polygon_vertices(shape_a))
         vb = origin_b[:, None] + np.einsum("mij,kj->mki", rot_b, _polygon_vertices(shape_b))

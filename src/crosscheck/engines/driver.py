@@ -78,6 +78,11 @@ class CostPlan:
     min_seconds: float = 0.2
     max_repeats: int = 50
     budget_seconds: float = 15.0
+    # The runner spreads a rigid cell's cost pass over this many tasks, each timing this plan in
+    # whichever worker process is free later in the run, and pools them (merge_costs): a
+    # process's own timing offset (code alignment, caches) is then inside the reported spread
+    # instead of between runs. The driver itself times one process.
+    processes: int = 3
 
 
 @dataclass
@@ -113,7 +118,33 @@ class Cost:
             "range": (w_max - w_min) / w_min if w_min > 0 else 0.0,
             "us_per_step": 1e6 * w_min / self.steps if self.steps else None,
             "note": self.note,
+            "processes": 1,
+            "wall_samples": list(self.wall),
+            "cpu_samples": list(self.cpu),
         }
+
+
+def merge_costs(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """One cost from the cost passes of several processes (``Cost.to_dict`` of each): the
+    repetitions pooled, and the spread the larger of the pooled interquartile range and the
+    range of the processes' medians (both relative to the pooled median), so that a cell timed
+    again in another process lands inside it. Parts that timed nothing are left out."""
+    timed = [p for p in parts if p.get("repeats") and p.get("wall_samples")]
+    if not timed:
+        return dict(parts[0]) if parts else {}
+    first = timed[0]
+    cost = Cost(steps=first["steps"], simulated=first["simulated_time"],
+                wall=[w for p in timed for w in p["wall_samples"]],
+                cpu=[c for p in timed for c in p["cpu_samples"]],
+                note="; ".join(dict.fromkeys(p["note"] for p in timed if p.get("note"))))
+    out = cost.to_dict()
+    medians = [statistics.median(p["wall_samples"]) for p in timed]
+    pooled = out["wall_median"]
+    between = (max(medians) - min(medians)) / pooled if pooled > 0 else 0.0
+    out.update(processes=len(timed), between_processes=between,
+               within_process=out["spread"], spread=max(out["spread"], between),
+               process_medians=medians)
+    return out
 
 
 def _iqr(values: list[float]) -> float:

@@ -40,7 +40,10 @@ from its last step, and neither changeDynamics nor a pose reset refreshes it.
   centre of mass: the plane is exact; the joint coordinates are the centre of mass and the angle.
 * ``maximal``: a free rigid body with the in-plane state, projected back (no planar joint exists
   for a maximal-coordinate body); it carries the isotropic inertia (I, I, I), so the gyroscopic
-  term vanishes and nothing pushes it out of the plane.
+  term vanishes and nothing pushes it out of the plane. Contact would: 2D contact is the chain's
+  only (``contact_plan``, ``MAXIMAL_2D_CONTACT``).
+* Contact: each 2D shape is a prism along z on the chain's last link, the ground line a plane
+  containing z (``contact_plan``; docs/engines.md, PyBullet, "Contact").
 
 Either way the out-of-plane drift is read from PyBullet and kept in ``extras``:
 ``out_of_plane`` (T, N) the centre of mass' z (m), ``out_of_plane_tilt`` (T, N) the angle between
@@ -129,6 +132,19 @@ IMPACT_PARAMETERS = {"restitutionVelocityThreshold": 0.0, "contactSlop": 0.0, "c
 # A per-surface value must reproduce every pair's value to this relative error (round-off of
 # exp / log and one product).
 PAIR_TOLERANCE = 1e-12
+# Why a maximal-coordinate 2D body cannot run contact, measured through the adapter with this
+# refusal lifted (benchmarks/contact_pybullet_2d.py; None lifts it, for that measurement only).
+MAXIMAL_2D_CONTACT: str | None = (
+    "2D contact needs the planar chain (integrator multibody): a maximal-coordinate body has no "
+    "joint holding it in the plane, and Bullet puts the contact points of a prism on the ground "
+    "or on a circle on one face of the prism (z = +depth), so contact tilts it out of the "
+    "plane. Measured through the adapter with this refusal lifted (contact cases, dt = 1e-3; "
+    "cradle 1e-4): the elastic circle tumbles (tilt 3.1 rad, z 2.7 m, apex error 27 %), the "
+    "box on the 35 degree incline tilts 0.71 rad (mu_eff off by 0.016), the billiard circles "
+    "tilt 0.56 rad and their momentum transfer is 8.3 % off, the cradle's velocities 0.31 "
+    "m/s off, the sliding box tilts 0.064 rad and stops 2.6 % short, the slipping disk's "
+    "spin is 0.23 rad/s off; no prism depth from 0.1 to 10 times the adapter's avoids it. The "
+    "multibody chain stays in the plane exactly (benchmarks/contact_pybullet_2d.py)")
 
 
 def factor_pairs(items: list[str], pairs: list[tuple[str, str, float]],
@@ -177,7 +193,8 @@ def factor_pairs(items: list[str], pairs: list[tuple[str, str, float]],
     return out, None
 
 
-def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
+def contact_plan(scene: Scene, integrator: str | None = None
+                 ) -> tuple[dict[str, Any] | None, str | None]:
     """What the adapter gives Bullet for a contact scene, or why it cannot (not applicable).
 
     ``kind``: "resting" when every colliding pair has restitution 0 (CONTACTS.md recipe 6(a),
@@ -185,11 +202,19 @@ def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
     restitution > 0 (restitution threshold, slop, processing threshold, contact ERP and warm
     starting 0); a mix is not applicable (C12). ``friction`` / ``restitution``: per surface
     (body, static, "ground"), each pair's value their product.
+
+    2D: every shape is a prism along z, ``extrusion_half_depth`` either side of the plane (a
+    circle a cylinder, a box a box, a polygon the convex hull of its prism), the ground line a
+    plane containing z, statics likewise, the pair values factored as in 3D. Only the planar
+    chain (``multibody``: prismatic x, prismatic y, revolute z, the prism on the last link, the
+    only link that collides) keeps the plane exact: the moments about x and y of contact points
+    off z = 0 and friction along z fall on no joint. A ``maximal`` 2D body has no joint holding
+    it in the plane, and Bullet puts a plane contact's points on one face of the prism (z =
+    +depth), so contact tilts it and pushes it out of the plane: not applicable with the
+    measured reason (``MAXIMAL_2D_CONTACT``; docs/engines.md, PyBullet, "Contact").
     """
-    if scene.dimension != 3:
-        return None, ("2D contact is not mapped for PyBullet: the planar chain would need its "
-                      "link to carry the 2D shape extruded along z (as MuJoCo's prisms); not "
-                      "done")
+    if scene.dimension == 2 and integrator == "maximal" and MAXIMAL_2D_CONTACT is not None:
+        return None, MAXIMAL_2D_CONTACT
     from crosscheck.scene.contact import GROUND
 
     items = list(scene.body_names) + list(scene.static_names)
@@ -225,15 +250,22 @@ def contact_plan(scene: Scene) -> tuple[dict[str, Any] | None, str | None]:
         items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
     if why is not None:
         return None, why
-    restitution, why = factor_pairs(
-        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
-    if why is not None:
-        return None, why
     masses = [float(b.mass) for b in scene.bodies]
     ratio = max(masses) / min(masses)
     return {"kind": "impact" if bouncy else "resting", "friction": friction,
             "restitution": restitution, "mass_ratio": ratio,
             "iterations": CONTACT_ITERATIONS_HEAVY if ratio >= HEAVY_RATIO else None}, None
+
+
+def extrusion_half_depth(scene: Scene) -> float:
+    """2D contact: half the z extent of the prisms that stand in for circles, boxes and polygons
+    (bodies and statics): the largest in-plane half extent of any of them, MuJoCo's rule
+    (``mujoco.extrusion_half_depth``), so both engines collide the same prisms."""
+    half = 0.0
+    for thing in (*scene.bodies, *scene.statics):
+        lo, hi = thing.shape.bounding_box()
+        half = max(half, float(np.max(np.abs(np.concatenate([lo, hi])))))
+    return half if half > 0 else 1.0
 
 
 def engine_options(scene: Scene) -> dict[str, Any]:
@@ -390,8 +422,10 @@ class PybulletModel:
         self.probe_result: dict[str, Any] | None = None
         self.contact = bool(scene.effects.contact)
         self.plan: dict[str, Any] | None = None
+        # 2D contact: the prisms' half depth along z (``extrusion_half_depth``)
+        self._depth = extrusion_half_depth(scene) if self.contact and self.dim == 2 else 0.0
         if self.contact:
-            self.plan, reason = contact_plan(scene)
+            self.plan, reason = contact_plan(scene, integrator)
             if reason is not None:
                 raise ValueError(f"PyBullet cannot run this contact scene: {reason}")
             if self.options["contact_parameters"] == "defaults":
@@ -478,11 +512,17 @@ class PybulletModel:
                 moments = np.full(3, body.moment)
             q_axes = matrix_to_quat(axes)
             if self.planar_joints:
+                # Contact: only the last link (centred on the centre of mass, turned by the
+                # angle) carries the prism, the body frame's origin at -com in it; the base and
+                # the two prismatic links have no shape and keep filter group and mask 0.
+                shape = (self._collision_shape(body.shape, [-com[0], -com[1], 0.0])
+                         if self.contact else -1)
                 uid = _p.createMultiBody(
                     baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
                     basePosition=[0.0, 0.0, 0.0], baseOrientation=[0.0, 0.0, 0.0, 1.0],
                     linkMasses=[0.0, 0.0, float(body.mass)],
-                    linkCollisionShapeIndices=[-1, -1, -1], linkVisualShapeIndices=[-1, -1, -1],
+                    linkCollisionShapeIndices=[-1, -1, shape],
+                    linkVisualShapeIndices=[-1, -1, -1],
                     linkPositions=[[0.0, 0.0, 0.0]] * 3,
                     linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * 3,
                     linkInertialFramePositions=[[0.0, 0.0, 0.0]] * 3,
@@ -515,14 +555,52 @@ class PybulletModel:
         self._com3 = np.array([b.com3 for b in self.bodies]).reshape(-1, 3)
 
     # -- contact (docs/engines.md, PyBullet, "Contact") ---------------------------------------
-    def _collision_shape(self, shape) -> int:
+    def _collision_shape(self, shape, frame_position=None) -> int:
         """A collision shape in the body frame. createMultiBody places a base's collision shape
         relative to the link frame (the declared body frame), not the inertial frame (measured:
         a box with an offset, rotated inertial frame lands centred on the body frame), so every
         shape, centred on its body-frame origin or given in body-frame coordinates, goes in at
-        the identity."""
+        the identity. ``frame_position``: where the body frame's origin sits in the link frame
+        (the planar chain's last link is centred on the centre of mass: ``-com``; a hull takes
+        it into its vertices, an implicit shape as ``collisionFramePosition``).
+
+        A hull (mesh, polygon prism) gets collision margin 0 on the shape itself
+        (``_without_margin``), before any body uses it.
+
+        2D shapes are prisms along z, ``self._depth`` either side of the plane: a circle a
+        btCylinderShapeZ, a box a btBoxShape with that z half extent, a polygon the convex hull
+        of its vertices at z = -depth and +depth (docs/engines.md, PyBullet, "Contact")."""
         cid = self.cid
         kind = shape.kind
+        frame = {} if frame_position is None else {
+            "collisionFramePosition": [float(x) for x in frame_position]}
+
+        def hull(vertices) -> int:
+            v = np.asarray(vertices, float)
+            if frame_position is not None:
+                v = v + np.asarray(frame_position, float)
+            idx = _p.createCollisionShape(_p.GEOM_MESH, vertices=v.tolist(),
+                                          physicsClientId=cid)
+            return self._without_margin(idx) if idx >= 0 else idx
+        if self.dim == 2:
+            depth = self._depth
+            if kind == "circle":
+                idx = _p.createCollisionShape(_p.GEOM_CYLINDER, radius=float(shape.radius),
+                                              height=2.0 * depth, physicsClientId=cid, **frame)
+            elif kind == "box":
+                w, h = (0.5 * float(x) for x in shape.size)
+                idx = _p.createCollisionShape(_p.GEOM_BOX, halfExtents=[w, h, depth],
+                                              physicsClientId=cid, **frame)
+            elif kind == "polygon":
+                v = np.asarray(shape.vertices, float)
+                prism = np.concatenate([np.column_stack([v, np.full(len(v), -depth)]),
+                                        np.column_stack([v, np.full(len(v), depth)])])
+                idx = hull(prism)
+            else:  # pragma: no cover - the loader gives 2D scenes 2D shapes only
+                raise ValueError(f"no PyBullet 2D collision shape for {kind!r}")
+            if idx < 0:  # pragma: no cover
+                raise RuntimeError(f"pybullet refused the 2D {kind} collision shape")
+            return idx
         if kind == "sphere":
             idx = _p.createCollisionShape(_p.GEOM_SPHERE, radius=float(shape.radius),
                                           physicsClientId=cid)
@@ -537,16 +615,38 @@ class PybulletModel:
             idx = _p.createCollisionShape(_p.GEOM_CYLINDER, radius=float(shape.radius),
                                           height=float(shape.length), physicsClientId=cid)
         elif kind == "mesh":  # vertices without indices: btConvexHullShape, the convex hull
-            idx = _p.createCollisionShape(
-                _p.GEOM_MESH, vertices=np.asarray(shape.vertices, float).tolist(),
-                physicsClientId=cid)
+            idx = hull(shape.vertices)
         else:  # pragma: no cover - 2D contact is not applicable (contact_plan)
             raise ValueError(f"no PyBullet collision shape for {kind!r}")
         if idx < 0:  # pragma: no cover
             raise RuntimeError(f"pybullet refused the {kind} collision shape")
         return idx
 
-    def _material(self, uid: int, name: str) -> None:
+    def _without_margin(self, idx: int) -> int:
+        """Collision margin 0 on the hull shape ``idx`` itself, through a temporary static body.
+
+        A convex hull keeps Bullet's default collision margin (1 mm) outside its faces: the
+        L-bracket rested 0.97 mm above the ground with it, 0.03 mm into it without. But
+        changeDynamics's ``collisionMargin`` only reaches a base's top-level shape: a
+        multibody link's shape is left alone (the planar chain's polygon prism, 0.1 mm into
+        the ground, read 1.1 mm deep), and so is the child of the btCompoundShape that wraps a
+        maximal body's shape when its inertial frame is offset (the L-bracket as a maximal
+        body rested 0.97 mm high). The shape object is shared by every body built on it, so
+        the margin is set on it through a throw-away base, removed at once
+        (tests/engines/test_pybullet_contact.py). Implicit shapes (sphere, box, capsule,
+        cylinder) keep their margin inside the surface and are left alone."""
+        cid = self.cid
+        holder = _p.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=idx,
+                                    baseVisualShapeIndex=-1, physicsClientId=cid)
+        _p.setCollisionFilterGroupMask(holder, -1, 0, 0, physicsClientId=cid)
+        _p.changeDynamics(holder, -1, collisionMargin=0.0, physicsClientId=cid)
+        margin = _p.getDynamicsInfo(holder, -1, physicsClientId=cid)[11]
+        _p.removeBody(holder, physicsClientId=cid)
+        if margin != 0.0:  # pragma: no cover
+            raise RuntimeError(f"a hull's collision margin read back {margin}, asked 0")
+        return idx
+
+    def _material(self, uid: int, name: str, link: int = -1) -> None:
         """The surface's factor of every pair value (Bullet multiplies the two surfaces'),
         rolling and spinning friction 0; impact scenes: contact processing threshold 0."""
         plan = self.plan
@@ -555,15 +655,7 @@ class PybulletModel:
                                   rollingFriction=0.0, spinningFriction=0.0)
         if self._impact:
             kw["contactProcessingThreshold"] = 0.0
-        shape = next((t.shape for t in (*self.scene.bodies, *self.scene.statics)
-                      if t.name == name), None)
-        if shape is not None and shape.kind == "mesh":
-            # A convex hull keeps Bullet's default collision margin (1 mm) outside its faces:
-            # the L-bracket rested 0.97 mm above the ground with it, 0.03 mm into it without
-            # (tests/engines/test_pybullet_contact.py). Implicit shapes (sphere, box, capsule,
-            # cylinder) keep their margin inside the surface and are left alone.
-            kw["collisionMargin"] = 0.0
-        _p.changeDynamics(uid, -1, physicsClientId=self.cid, **kw)
+        _p.changeDynamics(uid, link, physicsClientId=self.cid, **kw)
 
     def _build_contact(self) -> None:
         """Materials on the bodies, the ground plane and the statics as static bodies of the
@@ -575,20 +667,33 @@ class PybulletModel:
         cid = self.cid
         scene = self.scene
         self.surfaces: dict[str, int] = {}
+        # the link that carries each surface's shape: the planar chain's last link, else -1
+        self.surface_links: dict[str, int] = {}
+        link = self._shape_link
         for b, body in zip(self.bodies, scene.bodies, strict=True):
-            self._material(b.uid, body.name)
+            self._material(b.uid, body.name, link)
             self.surfaces[body.name] = b.uid
+            self.surface_links[body.name] = link
         for st in scene.statics:
+            if self.dim == 3:
+                pos = [float(x) for x in st.position]
+                quat = np.asarray(st.orientation, float)
+            else:  # a 2D static: its prism at (x, y, 0), turned about z
+                pos = [float(st.position[0]), float(st.position[1]), 0.0]
+                half = 0.5 * float(np.ravel(st.orientation)[0])
+                quat = np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
             uid = _p.createMultiBody(
                 baseMass=0.0, baseCollisionShapeIndex=self._collision_shape(st.shape),
-                baseVisualShapeIndex=-1, basePosition=[float(x) for x in st.position],
-                baseOrientation=_xyzw(np.asarray(st.orientation, float)),
+                baseVisualShapeIndex=-1, basePosition=pos, baseOrientation=_xyzw(quat),
                 useMaximalCoordinates=self.maximal, physicsClientId=cid)
             self._material(uid, st.name)
             _p.setCollisionFilterGroupMask(uid, -1, 1, 1, physicsClientId=cid)
             self.surfaces[st.name] = uid
+            self.surface_links[st.name] = -1
         if scene.ground is not None:
             n = np.asarray(scene.ground.normal, float)
+            if self.dim == 2:  # the ground line: a plane containing z, its trace the line
+                n = np.array([n[0], n[1], 0.0])  # a unit normal (the loader's) stays one
             # btStaticPlaneShape(normal, 0) in the ground body's frame, the body at n * offset
             plane = _p.createCollisionShape(_p.GEOM_PLANE, planeNormal=n.tolist(),
                                             physicsClientId=cid)
@@ -600,10 +705,18 @@ class PybulletModel:
             # A static rigid body's default group (2) is not in the mask 1 the bodies get.
             _p.setCollisionFilterGroupMask(uid, -1, 1, 1, physicsClientId=cid)
             self.surfaces[GROUND] = uid
+            self.surface_links[GROUND] = -1
         for pair in scene.contact_pairs():
             if not pair.material.collide:
-                _p.setCollisionFilterPair(self.surfaces[pair.a], self.surfaces[pair.b], -1, -1,
-                                          0, physicsClientId=cid)
+                _p.setCollisionFilterPair(self.surfaces[pair.a], self.surfaces[pair.b],
+                                          self.surface_links[pair.a],
+                                          self.surface_links[pair.b], 0, physicsClientId=cid)
+
+    @property
+    def _shape_link(self) -> int:
+        """The link that carries a body's collision shape: the planar chain's last link (2),
+        else the base (-1)."""
+        return 2 if self.planar_joints else -1
 
     @property
     def _impact(self) -> bool:
@@ -612,8 +725,11 @@ class PybulletModel:
                 and self.options["contact_parameters"] == "recipe")
 
     def _enable_contact(self) -> None:
+        """Filter group and mask 1 on the link carrying each body's shape only (the planar
+        chain's base and prismatic links have none and stay 0)."""
+        link = self._shape_link
         for b in self.bodies:
-            _p.setCollisionFilterGroupMask(b.uid, -1, 1, 1, physicsClientId=self.cid)
+            _p.setCollisionFilterGroupMask(b.uid, link, 1, 1, physicsClientId=self.cid)
 
     def _local_offset(self, body_index: int, point) -> np.ndarray:
         """A body-frame point relative to the centre of mass, in the frame ``read_raw`` rotates.
@@ -972,7 +1088,7 @@ class PybulletModel:
         # one set (measured: 0.0 after setting 0.3, 0.2 after setting 0; the bounce follows the
         # value set, tests/engines/test_pybullet_contact.py): only its friction is checked.
         for name, uid in self.surfaces.items():
-            info = _p.getDynamicsInfo(uid, -1, physicsClientId=cid)
+            info = _p.getDynamicsInfo(uid, self.surface_links[name], physicsClientId=cid)
             want = (plan["friction"][name], plan["restitution"][name])
             read[name] = (info[1], want[1] if self.maximal else info[5])
             entry = {"name": name, "lateral_friction": info[1], "restitution_set": want[1],
@@ -1012,12 +1128,21 @@ class PybulletModel:
             "parameters": self.options["contact_parameters"],
             "kind_reason": ("every colliding pair has restitution > 0" if impact else
                             "every colliding pair has restitution 0"),
-            "body_kind": _contact_note(plan["kind"], self.maximal),
+            "body_kind": _contact_note(plan["kind"], self.maximal) + (
+                "; 2D: the planar chain is the only kind (MAXIMAL_2D_CONTACT)"
+                if self.dim == 2 else ""),
             "ground_and_statics": ("static bodies, useMaximalCoordinates="
                                    f"{self.maximal} like the bodies (CONTACTS.md C10)"),
             "shapes": ("sphere, box, capsule (cylindrical length), cylinder: Bullet's own; mesh: "
                        "btConvexHullShape of its vertices, collided as its convex hull; ground: "
-                       "btStaticPlaneShape; all at the body frame"),
+                       "btStaticPlaneShape; all at the body frame" if self.dim == 3 else
+                       "prisms along z, extrusion_half_depth_2d either side of the plane: "
+                       "circle btCylinderShapeZ, box btBoxShape, polygon btConvexHullShape of "
+                       "its prism (collision margin 0); ground line: btStaticPlaneShape with "
+                       "the normal (nx, ny, 0); on the planar chain's last link (centred on "
+                       "the centre of mass, the body frame at -com in it), the only link with "
+                       "a shape and filter group/mask 1"),
+            "extrusion_half_depth_2d": self._depth if self.dim == 2 else None,
             "combination": "Bullet multiplies the two surfaces' values; each surface carries "
                            "a factor of every pair value (solved in log space, checked per pair)",
             "surfaces": surfaces,
@@ -1117,8 +1242,9 @@ class PybulletModel:
                                            "note": "global to the process (ENGINES.md trap 10)"},
             "collisions": ("none: no collision shapes, collision filter group and mask 0"
                            if not self.contact else
-                           "collision shapes; filter group 1, mask 1 on every body, static and "
-                           "the ground; setCollisionFilterPair(0) on collide = false pairs"),
+                           "collision shapes; filter group 1, mask 1 on every body (2D: the "
+                           "planar chain's last link only), static and the ground; "
+                           "setCollisionFilterPair(0) on collide = false pairs"),
             "contact": self.contact_settings(params, problems) if self.contact else None,
             "max_rotation_per_step": MAX_ROTATION_PER_STEP,
             "forces": ("none" if not self.forces_active else
@@ -1172,7 +1298,7 @@ class PybulletEngine(EngineBase):
         reason = super().not_applicable(scene, integrator)
         if reason is not None or not scene.effects.contact:
             return reason
-        return contact_plan(scene)[1]
+        return contact_plan(scene, integrator)[1]
 
     def open(self, scene: Scene, integrator: str, dt: float) -> PybulletModel:
         model = PybulletModel(scene, integrator, dt)

@@ -10,6 +10,10 @@ columns and those lines, so reports can cite where the numbers come from.
   Tables I and II), for every Reynolds number of the paper (:data:`GHIA_REYNOLDS`). Lid speed 1,
   lid at y = 1 moving in +x. Each file's header names its table and column, the public copies it
   was checked against and the points left out (two misprints, in Re = 3200 and 10000).
+* ``schafer_turek_1996``: the DFG benchmark, channel flow past a cylinder (Schafer & Turek 1996):
+  the published intervals of drag, lift, pressure difference (2D-1, Re = 20) and maximum drag,
+  maximum lift, Strouhal number (2D-2, Re = 100), with the FEATFLOW reference values of 2D-1
+  (:func:`dfg_reference`); its header names the copies it was checked against.
 
 A case names a data set by :data:`CASE_TABLES` (``reference.table``); the loader refuses any
 other name, and a cavity case whose Reynolds number is not one of the paper's
@@ -30,6 +34,7 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
     CASE_TABLES,
     GHIA_REYNOLDS,
     REYNOLDS_RTOL,
+    SCHAFER_TUREK,
     ghia_reynolds,
 )
 
@@ -67,6 +72,52 @@ def load_table(name: str) -> Table:
             rows.append([float(v) for v in line.split(",")])
     data = np.array(rows)
     return Table(name, {h: data[:, i] for i, h in enumerate(header)}, tuple(source))
+
+
+@dataclass(frozen=True)
+class BenchmarkValue:
+    """One published quantity: its interval and, where the source has one, a precise value."""
+
+    lower: float
+    upper: float
+    reference: float | None
+
+    @property
+    def centre(self) -> float:
+        return 0.5 * (self.lower + self.upper)
+
+    @property
+    def target(self) -> float:
+        """The precise value where there is one, else the interval's centre."""
+        return self.centre if self.reference is None else self.reference
+
+
+DFG_FILE = "schafer_turek1996_cylinder.csv"
+
+
+def dfg_reference(case: str) -> tuple[dict[str, BenchmarkValue], tuple[str, ...]]:
+    """The DFG benchmark's values for ``case`` (``"2D-1"`` or ``"2D-2"``) by quantity name, and
+    the file's source lines."""
+    text = resources.files("crosscheck.reference").joinpath("data", DFG_FILE).read_text()
+    source, values, header = [], {}, None
+    for line in text.splitlines():
+        line = line.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            source.append(line.lstrip("# ").rstrip())
+            continue
+        cells = [c.strip() for c in line.split(",")]
+        if header is None:
+            header = cells
+            continue
+        row = dict(zip(header, cells, strict=True))
+        if row["case"] == case:
+            ref = float(row["reference"]) if row["reference"] else None
+            values[row["quantity"]] = BenchmarkValue(float(row["lower"]), float(row["upper"]), ref)
+    if not values:
+        raise KeyError(f"no DFG benchmark {case!r} in {DFG_FILE}")
+    return values, tuple(source)
 
 
 def sloshing_period(width: float, depth: float, g: float, mode: int = 1) -> float:

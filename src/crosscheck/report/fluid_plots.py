@@ -1,5 +1,13 @@
 """Figures of a fluid run for the HTML report: free-surface frames, the validation plot against
-the case's reference, and a short animation of the surface."""
+the case's reference, and a short animation of the surface where it moves.
+
+Files in the run's plot folder, palette PNGs (crosscheck.report.figure.png). The page embeds the
+validation plot (the one that answers "does it match the reference?", or the frames when the
+case has none) and links the frames and the animation: they are the heavy part and a reader
+who wants them clicks. The animation is made only where the surface moves by at least
+:data:`MOVES_CELLS` cells: a tank at rest, or a 5 mm sloshing wave on a 16 mm grid, animates
+into a still picture that would only add weight.
+"""
 
 from __future__ import annotations
 
@@ -14,8 +22,29 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from crosscheck.compare import fluid_metrics as FM  # noqa: E402
-from crosscheck.reference.fluid_data import load_table, sloshing_period  # noqa: E402
+from crosscheck.reference.fluid_data import (  # noqa: E402
+    SCHAFER_TUREK,
+    dfg_reference,
+    load_table,
+    sloshing_period,
+)
+from crosscheck.report.atomic import write_bytes  # noqa: E402
+from crosscheck.report.figure import png  # noqa: E402
 from crosscheck.sim.fluid.levelset import surface_lines  # noqa: E402
+
+DPI = 90
+MOVES_CELLS = 2.0
+# The figure the page embeds (the rest are linked): the validation plot, else the frames.
+EMBED_ORDER = ("-validation.png", "-frames.png")
+
+
+def embedded(paths: list[str]) -> str | None:
+    """Of a fluid run's plot files, the one the page shows inline (the others are linked)."""
+    for suffix in EMBED_ORDER:
+        for p in paths:
+            if str(p).endswith(suffix):
+                return p
+    return None
 
 
 def _stem(scene: Any, record: Any) -> str:
@@ -48,11 +77,53 @@ def _draw_frame(ax, scene, record, k: int) -> None:
         y = (np.arange(ny) + 0.5) * dx
         if np.any(speed > 0):
             ax.streamplot(x, y, uc.T, vc.T, color="white", density=1.0, linewidth=0.5)
+    _draw_obstacles(ax, spec)
     ax.set_xlim(0, spec.domain[0])
     ax.set_ylim(0, spec.domain[1])
     ax.set_aspect("equal")
     ax.set_title(f"t = {record.field_t[k]:.3g} s", fontsize=8)
     ax.tick_params(labelsize=6)
+
+
+def _draw_obstacles(ax, spec) -> None:
+    """The obstacles' outlines: the zero contour of their signed distance on a grid four times
+    finer than the fluid's (any shape, turned or not)."""
+    if not spec.obstacles:
+        return
+    from crosscheck.sim.fluid.cutcell import union_distance
+
+    nx, ny = spec.resolution
+    h = spec.dx / 4
+    x = (np.arange(4 * nx) + 0.5) * h
+    y = (np.arange(4 * ny) + 0.5) * h
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    d = union_distance(spec.obstacles, np.stack([X, Y], axis=-1))
+    ax.contourf(x, y, d.T, levels=[-np.inf, 0.0], colors=["0.55"])
+    ax.contour(x, y, d.T, levels=[0.0], colors=["k"], linewidths=0.6)
+
+
+def _plot_dfg(ax, scene, record, name) -> None:
+    """The DFG benchmark: drag and lift coefficients against time with the published intervals
+    (2D-1: the reference value; 2D-2: the maxima's intervals)."""
+    case = SCHAFER_TUREK[name][0]
+    refs, _ = dfg_reference(case)
+    cd, cl = FM.force_coefficients(scene, record)
+    key_d, key_l = (("drag_coefficient", "lift_coefficient") if case == "2D-1"
+                    else ("drag_coefficient_max", "lift_coefficient_max"))
+    ax.plot(record.t, cd, color="C0", label="c_D")
+    ax.axhspan(refs[key_d].lower, refs[key_d].upper, color="C0", alpha=0.3,
+               label=f"{key_d} published")
+    lo, hi = refs[key_d].lower, refs[key_d].upper
+    ax.set_ylim(min(lo, np.min(cd[len(cd) // 4:])) - 0.1, max(hi, np.max(cd[len(cd) // 4:])) + 0.1)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("drag coefficient", color="C0")
+    ax2 = ax.twinx()
+    ax2.plot(record.t, cl, color="C1", lw=0.8, label="c_L")
+    ax2.axhspan(refs[key_l].lower, refs[key_l].upper, color="C1", alpha=0.3)
+    ax2.set_ylabel("lift coefficient", color="C1")
+    if case == "2D-1":
+        span = max(0.01, 2 * np.max(np.abs(cl[len(cl) // 2:] - refs[key_l].target)))
+        ax2.set_ylim(refs[key_l].target - span, refs[key_l].target + span)
 
 
 def plot_frames(scene: Any, record: Any, outdir: Path, n: int = 6) -> Path:
@@ -67,8 +138,7 @@ def plot_frames(scene: Any, record: Any, outdir: Path, n: int = 6) -> Path:
         ax.axis("off")
     fig.suptitle(f"{scene.name} ({record.meta.get('integrator')})", fontsize=9)
     fig.tight_layout()
-    path = outdir / f"{_stem(scene, record)}-frames.png"
-    fig.savefig(path, dpi=110)
+    path = write_bytes(outdir / f"{_stem(scene, record)}-frames.png", png(fig, DPI))
     plt.close(fig)
     return path
 
@@ -128,6 +198,8 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
+    elif name in SCHAFER_TUREK:
+        _plot_dfg(ax[0], scene, record, name)
     else:
         plt.close(fig)
         return None
@@ -136,15 +208,27 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
     ax[0].set_title(text, fontsize=7)
     ax[0].legend(fontsize=7)
     fig.tight_layout()
-    path = outdir / f"{_stem(scene, record)}-validation.png"
-    fig.savefig(path, dpi=110)
+    path = write_bytes(outdir / f"{_stem(scene, record)}-validation.png", png(fig, DPI))
     plt.close(fig)
     return path
 
 
+def surface_motion(record: Any) -> float:
+    """How far the free surface moved, in cells: the largest number of cells whose wet state
+    differs from the first frame, over the frames, divided by the grid's width in cells (a
+    surface displaced by h cells across the whole width changes h cells per column)."""
+    phi = record.fields["phi"]
+    wet0 = np.asarray(phi[0], float) < 0
+    changed = max(int(np.count_nonzero((np.asarray(f, float) < 0) != wet0)) for f in phi)
+    return changed / wet0.shape[0]
+
+
 def animate(scene: Any, record: Any, outdir: Path, max_frames: int = 40) -> Path | None:
-    """A short GIF of the free surface (free-surface cases with enough frames only)."""
+    """A short GIF of the free surface: free-surface cases with enough frames whose surface
+    moves by at least MOVES_CELLS cells."""
     if not scene.fluid.has_surface or len(record.field_t) < 5 or "phi" not in record.fields:
+        return None
+    if surface_motion(record) < MOVES_CELLS:
         return None
     from matplotlib.animation import FuncAnimation, PillowWriter
 

@@ -1,10 +1,12 @@
-"""``summary.md``: one Markdown table for a CI step summary (e.g. ``$GITHUB_STEP_SUMMARY``).
+"""``summary.md``: the run for a CI step summary (e.g. ``$GITHUB_STEP_SUMMARY``).
 
-One row per cell (case x engine x integrator x dt), ordered regressions first, then failures
-(error, timeout, blowup, fail), passes, and not-applicable cells last; each row names the cell's
-worst metric (largest value / limit) with its value and limit, its cost, and for a regression the
-metric that got worse with old and new values. Baseline details (improvements, new and missing
-cells) follow the table.
+The headline, the regressions and failures, then the overview matrix (cases x runs,
+crosscheck.report.overview, without colour), then one row per cell (case x engine x integrator
+x dt), ordered regressions first, then failures (error, timeout, blowup, fail), passes, and
+not-applicable cells last; each row names the cell's worst metric (largest value / limit) with
+its value and limit, its cost, and the reason or the regression with old and new values. Every
+column is filled: where a value cannot exist the entry says so ("-" with the reason in the note,
+"not timed", "no MuJoCo run"). The baseline section (crosscheck.report.baseline_view) follows.
 """
 
 from __future__ import annotations
@@ -52,10 +54,16 @@ def headline(doc: dict[str, Any]) -> str:
 
 
 def render(doc: dict[str, Any]) -> str:
+    from crosscheck.report import baseline_view, overview
+
     status = doc.get("exit_status")
     verdict = {0: "passed", 1: "FAILED"}.get(status, "incomplete")
+    view = overview.build(doc)
     lines = [f"## crosscheck {verdict}", "", headline(doc), ""]
-    lines += ["| | case | engine | integrator | dt | worst metric | value | limit | "
+    lines += overview.problems_markdown(view) + [""]
+    lines += overview.matrix_markdown(view) + [""]
+    lines += ["### Every cell", "",
+              "| | case | engine | integrator | dt | worst metric | value | limit | "
               "cost (s/s, min +spread) | cost / MuJoCo | note |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     ratios = mujoco_cost_ratios(doc.get("cells", []))
@@ -67,33 +75,13 @@ def render(doc: dict[str, Any]) -> str:
         elif c["status"] != "pass":
             note = (c.get("reason") or "").splitlines()[0][:140] if c.get("reason") else ""
         icon = "**REGRESSION**" if c.get("regression") else ICON.get(c["status"], c["status"])
+        metric, value, limit = _worst_columns(c, worst)
+        ratio = ratios.get(c.get("id"))
         lines.append(
             f"| {icon} | {_esc(c['case'])} | {c['engine']} | {c['integrator']} | "
-            f"{c['dt']:g} | {worst.get('metric', '')} | {_num(worst.get('value'))} | "
-            f"{_num(worst.get('limit'))} | {cost_text(c)} | "
-            f"{_num(ratios.get(c.get('id')))} | {_esc(note)} |")
-    base = doc.get("baseline")
-    if base is not None:
-        lines += ["", f"### Baseline `{base.get('file', '')}`", ""]
-        for title, key in (("Regressions", "regressions"), ("Improvements", "improvements"),
-                           ("Other status changes", "status_changes")):
-            items = base.get(key) or []
-            if items:
-                lines.append(f"**{title}** ({len(items)}):")
-                lines += [f"- {_change(ch)}" for ch in items]
-                lines.append("")
-        if base.get("new"):
-            lines.append(f"**New cells** ({len(base['new'])}): "
-                         + ", ".join(f"`{k}`" for k in base["new"]))
-            lines.append("")
-        if base.get("missing"):
-            lines.append(f"**Baseline cells not in this run** ({len(base['missing'])}; cases "
-                         "absent: " + (", ".join(base.get("missing_cases") or []) or "none")
-                         + "): " + ", ".join(f"`{k}`" for k in base["missing"]))
-            lines.append("")
-        if base.get("changed_cases"):
-            lines.append("**Case files changed since the baseline:** "
-                         + ", ".join(base["changed_cases"]))
+            f"{c['dt']:g} | {metric} | {value} | {limit} | {_esc(cost_text(c) or NO_COST)} | "
+            f"{_num(ratio) if ratio is not None else _no_ratio(c)} | {_esc(note)} |")
+    lines += [""] + baseline_view.section_markdown(doc)
     res = doc.get("resources") or {}
     if res:
         lines += ["", f"Peak resident memory {_num(res.get('peak_rss_total_mb'))} MiB "
@@ -102,11 +90,23 @@ def render(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _change(ch: dict[str, Any]) -> str:
-    if ch.get("metric") is None:
-        return f"`{ch['cell']}`: status {ch['old']} -> {ch['new']}"
-    return (f"`{ch['cell']}`: {ch['metric']} {_num(ch['old'])} -> {_num(ch['new'])} "
-            f"(slack {_num(ch.get('slack'))})")
+NO_COST = "not timed"
+
+
+def _worst_columns(cell: dict[str, Any], worst: dict[str, Any]) -> tuple[str, str, str]:
+    """(metric, value, limit) of the worst metric, or a word for why there is none."""
+    if worst.get("metric"):
+        value = worst.get("value")
+        return (worst["metric"], _num(value) if value is not None else "not finite",
+                _num(worst.get("limit")) if worst.get("limit") is not None else "none")
+    if cell["status"] in ("not_applicable", "error", "timeout"):
+        return "-", "-", "-"  # the note says why: nothing ran or was judged
+    return "none limited", "-", "-"
+
+
+def _no_ratio(cell: dict[str, Any]) -> str:
+    """Why a cell has no cost / MuJoCo: no cost of its own, or no MuJoCo run to divide by."""
+    return "-" if not cell.get("cost") else "no MuJoCo run"
 
 
 def write(doc: dict[str, Any], outdir: str | Path) -> Path:

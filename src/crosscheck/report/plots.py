@@ -1,118 +1,181 @@
-"""Per-case figures for the HTML report (matplotlib, Agg backend, PNG bytes).
+"""The per-case figure of the HTML report: the quantities that decide the verdict, over time.
 
-Each case gets one figure, one line per cell (engine colour, integrator line style), with a panel
-for each of: relative energy drift |E(t) - E(0)| / S_E; linear momentum drift; angular momentum
-drift; position error against the reference (m); orientation error against the reference (rad);
-and cost (wall s per simulated s) against accuracy, one point per cell. A panel whose series are
-zero for every cell (a centre of mass at rest) is left out. The accuracy axis is the first of
-position_error_max, orientation_error_max, the case's other limited metrics (e.g.
-flip_period_error), energy_drift that is non-zero for some cell. Curves are the down-sampled
-series the cells returned (the largest value in each bin, so peaks survive). Values of exactly
-zero are drawn at 1e-17 on the log axes.
+One panel per quantity, one line per engine-integrator (its colour and marker from
+:mod:`crosscheck.report.style`, the same in every figure of the report): relative energy drift
+``|E(t) - E(0)| / S_E``, linear and angular momentum drift (on their scales ``S_P``, ``S_L``),
+position and orientation error against the reference (m, rad) and, for contact cases, the
+deepest penetration (m). A panel is drawn when the quantity decides some cell's verdict (its
+metric is meaningful there: a momentum under gravity is not conserved and judges nothing) and
+some cell has a non-zero value; :func:`panels` names the quantities left out and why, for the
+page to say. Each panel shows the limits the case sets on its metric (dashed), and a run that
+blew up ends in a cross. Curves are the down-sampled series the cells returned (the largest
+value in each bin, so peaks survive); zero is drawn at :data:`FLOOR` on the log axes.
 """
 
 from __future__ import annotations
 
-import io
-import warnings
+from dataclasses import dataclass
 from typing import Any
 
-ENGINE_COLORS = {"inhouse": "#1f77b4", "mujoco": "#d62728", "pybullet": "#2ca02c",
-                 "pymunk": "#9467bd"}
-STYLES = ["-", "--", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1))]
-FLOOR = 1e-17
-ACCURACY_METRICS = ("position_error_max", "orientation_error_max", "energy_drift")
+from crosscheck.report.style import Looks, run_label
 
+FLOOR = 1e-16
+MARKS_PER_LINE = 10
 
-def _label(cell: dict[str, Any], multi_dt: bool) -> str:
-    text = f"{cell['engine']}-{cell['integrator']}"
-    return text + (f" dt={cell['dt']:g}" if multi_dt else "")
-
-
-def _style_map(cells):
-    styles = {}
-    for c in cells:
-        per_engine = [k for k in styles if k[0] == c["engine"]]
-        key = (c["engine"], c["integrator"])
-        if key not in styles:
-            styles[key] = STYLES[len(per_engine) % len(STYLES)]
-    return styles
-
-
-def _xy(series):
-    t = [a for a, b in zip(series["t"], series["y"], strict=True) if b is not None]
-    y = [max(b, FLOOR) for b in series["y"] if b is not None]
-    return t, y
-
-
-PANELS = (  # series name, panel title
-    ("energy_drift", "relative energy drift |E(t) - E(0)| / S_E"),
-    ("linear_momentum_drift", "linear momentum drift"),
-    ("angular_momentum_drift", "angular momentum drift"),
-    ("position_error", "position error vs reference (m)"),
-    ("orientation_error", "orientation error vs reference (rad)"),
-    ("penetration", "contact penetration, deepest pair (m)"),
+PANELS = (  # series, metric judged on it, title, y-axis label (with the unit)
+    ("energy_drift", "energy_drift", "energy drift", "|E(t) - E(0)| / S_E (1)"),
+    ("linear_momentum_drift", "linear_momentum_drift", "linear momentum drift",
+     "|P(t) - P(0)| / S_P (1)"),
+    ("angular_momentum_drift", "angular_momentum_drift", "angular momentum drift",
+     "|L(t) - L(0)| / S_L (1)"),
+    ("position_error", "position_error_max", "position error against the reference",
+     "distance (m)"),
+    ("orientation_error", "orientation_error_max", "orientation error against the reference",
+     "angle (rad)"),
+    ("penetration", "penetration_max", "contact penetration, deepest pair", "depth (m)"),
 )
 
 
+@dataclass
+class Figure:
+    data: bytes
+    mime: str
+
+
 def _has_signal(cells, name) -> bool:
-    """A panel is drawn when some cell has a non-zero value of that series."""
     return any(any(v for v in (c["series"][name]["y"] or []) if v is not None)
-               for c in cells if name in c["series"])
+               for c in cells if name in c.get("series", {}))
 
 
-def case_figure(case: str, cells: list[dict[str, Any]]) -> bytes | None:
-    """PNG bytes of the case's figure, or None when no cell has anything to draw."""
+def _decides(cells, metric) -> bool:
+    """The metric judges some cell: present and not marked meaningless (a non-conserved
+    quantity), or limited by the case."""
+    for c in cells:
+        m = (c.get("metrics") or {}).get(metric)
+        if m and (m.get("meaningful", True) or m.get("limit") is not None):
+            return True
+    return False
+
+
+def _why_not(cells, metric) -> str:
+    for c in cells:
+        note = ((c.get("metrics") or {}).get(metric) or {}).get("note") or ""
+        if note:
+            return note.split(";")[0]
+    return "not computed"
+
+
+def panels(cells: list[dict[str, Any]]) -> tuple[list[tuple], list[str]]:
+    """(panels to draw, "title: why not" for the quantities with a series that are not drawn)."""
+    drawn = [c for c in cells if c.get("series")]
+    keep, omitted = [], []
+    for panel in PANELS:
+        series, metric, title = panel[:3]
+        if not any(series in c.get("series", {}) for c in drawn):
+            continue
+        if not _decides(drawn, metric):
+            omitted.append(f"{title}: {_why_not(drawn, metric)}")
+        elif not _has_signal(drawn, series):
+            omitted.append(f"{title}: zero for every run")
+        else:
+            keep.append(panel)
+    return keep, omitted
+
+
+def limits(cells: list[dict[str, Any]], metric: str) -> list[float]:
+    """The distinct limits the case sets on ``metric`` across its cells."""
+    found = {(c.get("metrics") or {}).get(metric, {}).get("limit") for c in cells}
+    return sorted(v for v in found if isinstance(v, int | float) and v > 0)
+
+
+def draw_limits(ax, values: list[float]) -> None:
+    for v in values:
+        ax.axhline(v, color="#555555", linestyle="--", linewidth=0.8, zorder=1)
+        ax.annotate(f"limit {v:g}", (1.0, v), xycoords=("axes fraction", "data"),
+                    xytext=(-2, 2), textcoords="offset points", ha="right", fontsize=6,
+                    color="#555555")
+
+
+def _xy(series):
+    pairs = [(a, max(b, FLOOR)) for a, b in zip(series["t"], series["y"], strict=True)
+             if b is not None]
+    return [a for a, _ in pairs], [b for _, b in pairs]
+
+
+def case_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = None
+                ) -> Figure | None:
+    """The case's figure, or None when no cell has a quantity to draw."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
-    drawn = [c for c in cells if c.get("series")]
-    metric = accuracy_metric(cells)
-    points = [c for c in cells if (c.get("cost") or 0) > 0 and _value(c, metric) is not None]
-    panels = [(name, title) for name, title in PANELS if _has_signal(drawn, name)]
-    if points:
-        panels.append(("cost", f"cost vs accuracy ({metric})"))
-    if not panels:
+    from crosscheck.report.figure import encode, log_ticks
+
+    looks = looks or Looks.of(cells)
+    chosen, _ = panels(cells)
+    if not chosen:
         return None
-    ncols = 2 if len(panels) > 1 else 1
-    nrows = (len(panels) + ncols - 1) // ncols
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols, 3.2 * nrows), squeeze=False)
+    drawn = [c for c in cells if c.get("series")]
     multi_dt = len({c["dt"] for c in cells}) > 1
-    styles = _style_map(cells)
-    for ax, (name, title) in zip(axes.flat, panels, strict=False):
+    ncols = 2 if len(chosen) > 1 else 1
+    nrows = (len(chosen) + ncols - 1) // ncols
+    labels = list(dict.fromkeys(_label(c, multi_dt) for c in drawn))
+    legend_rows = (len(labels) + 3) // 4
+    height = 2.5 * nrows + 0.22 * legend_rows + 0.6
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.4 * ncols, height), squeeze=False)
+    handles: dict[str, Any] = {}
+    for ax, (series, metric, title, ylabel) in zip(axes.flat, chosen, strict=False):
         ax.set_title(title, fontsize=9)
-        if name == "cost":
-            _cost_panel(ax, points, metric, multi_dt)
-            continue
         ax.set_xlabel("t (s)", fontsize=8)
+        ax.set_ylabel(ylabel, fontsize=8)
         ax.set_yscale("log")
-        for c in drawn:
-            if name not in c["series"]:
+        runs = [c for c in drawn if series in c["series"]]
+        for k, c in enumerate(runs):
+            t, y = _xy(c["series"][series])
+            if not t:
                 continue
-            t, y = _xy(c["series"][name])
-            if t:
-                ax.plot(t, y, color=ENGINE_COLORS.get(c["engine"], "#555555"),
-                        linestyle=styles[(c["engine"], c["integrator"])], linewidth=1.1,
-                        label=_label(c, multi_dt))
+            look = looks[run_label(c)]
+            step = max(1, len(t) // MARKS_PER_LINE)
+            # Staggered marks: runs that coincide still show every marker.
+            (line,) = ax.plot(t, y, color=look.color, marker=look.marker, markersize=4,
+                              markevery=(k * step // max(1, len(runs)), step), linewidth=1.1)
+            handles.setdefault(_label(c, multi_dt), line)
+            if c.get("status") == "blowup":
+                ax.plot([t[-1]], [y[-1]], marker="X", markersize=9, color=look.color,
+                        markeredgecolor="k", linestyle="none", zorder=5)
+                handles.setdefault("blew up (end of its line)", Line2D(
+                    [], [], marker="X", color="w", markerfacecolor="#999999",
+                    markeredgecolor="k", markersize=8))
+        draw_limits(ax, limits(cells, metric))
         ax.tick_params(labelsize=7)
         ax.grid(True, which="major", alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=6, loc="best")
-    for ax in list(axes.flat)[len(panels):]:
+        log_ticks(ax, "y")
+    for ax in list(axes.flat)[len(chosen):]:
         ax.set_visible(False)
+    fig.legend(list(handles.values()), list(handles.keys()), loc="lower center",
+               ncol=min(4, len(handles)), fontsize=7, frameon=False)
     fig.suptitle(case, fontsize=10)
-    with warnings.catch_warnings():  # tight_layout may give up on crowded legends: cosmetic
-        warnings.simplefilter("ignore")
-        fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80)
+    # Fixed margins in inches, not tight_layout: it draws the whole figure once more to
+    # measure it, a third of the figure's time, and these labels have known sizes.
+    width = 6.4 * ncols
+    fig.subplots_adjust(left=0.8 / width, right=1 - 0.15 / width, top=1 - 0.55 / height,
+                        bottom=(0.22 * legend_rows + 0.6) / height, wspace=0.8 * 2 / width,
+                        hspace=0.75 / 2.5)
+    data, mime = encode(fig)
     plt.close(fig)
-    return buf.getvalue()
+    return Figure(data, mime)
 
 
-def _value(cell: dict[str, Any], name: str | None) -> float | None:
+def _label(cell: dict[str, Any], multi_dt: bool) -> str:
+    return run_label(cell) + (f" dt={cell['dt']:g}" if multi_dt else "")
+
+
+ACCURACY_METRICS = ("position_error_max", "orientation_error_max", "energy_drift")
+
+
+def value(cell: dict[str, Any], name: str | None) -> float | None:
     m = (cell.get("metrics") or {}).get(name or "")
     if m and m.get("value") is not None and m.get("meaningful", True):
         return m["value"]
@@ -126,34 +189,6 @@ def accuracy_metric(cells: list[dict[str, Any]]) -> str | None:
                       if m.get("limit") is not None and n not in ACCURACY_METRICS
                       and n != "blowup_time" and not n.endswith("_drift")})
     for name in (*ACCURACY_METRICS[:2], *limited, *ACCURACY_METRICS[2:]):
-        if any((_value(c, name) or 0) > 0 for c in cells):
+        if any((value(c, name) or 0) > 0 for c in cells):
             return name
     return None
-
-
-def log_axes(ax) -> None:
-    """Both axes logarithmic, labelled only at 1, 2 and 5 times a power of ten.
-
-    Matplotlib labels minor ticks when a span is under a decade, and those overprint each other.
-    """
-    from matplotlib import ticker
-
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        axis.set_major_formatter(ticker.LogFormatterSciNotation(labelOnlyBase=False))
-        axis.set_minor_formatter(ticker.NullFormatter())
-
-
-def _cost_panel(ax, cells, metric, multi_dt):
-    for c in cells:
-        value = max(_value(c, metric), FLOOR)
-        ax.scatter([c["cost"]], [value], color=ENGINE_COLORS.get(c["engine"], "#555"), s=18)
-        ax.annotate(_label(c, multi_dt), (c["cost"], value), fontsize=6, xytext=(3, 2),
-                    textcoords="offset points")
-    log_axes(ax)
-    ax.set_xlabel("cost: wall s per simulated s", fontsize=8)
-    ax.set_ylabel(metric or "", fontsize=7)
-    ax.tick_params(labelsize=7)
-    ax.grid(True, alpha=0.3)

@@ -3,7 +3,7 @@
 Schema ``crosscheck-results``, version :data:`SCHEMA_VERSION` (bumped on any incompatible
 change; docs/reports.md documents every field)::
 
-    schema, schema_version, crosscheck_version, command, started, finished, interrupted,
+    schema, schema_version, crosscheck_version, commit, command, started, finished, interrupted,
     exit_status, machine {hostname, platform, python, cpu_count, memory_total_mb},
     settings {backend, workers, scheduler, engines, integrators, dt, timeout, out,
               save_trajectories, baseline},
@@ -20,8 +20,9 @@ change; docs/reports.md documents every field)::
             regression [..], trajectory_file, plots, peak_rss_mb}],
     not_run [cell ids], counts {status: n},
     resources {peak_rss_total_mb, peak_rss_worker_mb, wall_seconds, backend, workers},
-    baseline {file, regressions, improvements, status_changes, new, missing, missing_cases,
-              changed_cases, dropped_metrics} | null
+    baseline {file, source {created, crosscheck_version, commit, started, machine, engines},
+              compared, engine_changes, regressions, improvements, status_changes, new,
+              missing, missing_cases, changed_cases, dropped_metrics} | null
 
 Non-finite numbers are written as ``null`` (JSON has no NaN); a metric that was NaN or infinite
 keeps its text in ``value_text``.
@@ -64,13 +65,34 @@ def machine() -> dict[str, Any]:
     return info
 
 
+def source_commit() -> str | None:
+    """The git commit of the crosscheck source that ran (``<sha>`` or ``<sha>+dirty`` with
+    uncommitted changes to tracked files), or None outside a git checkout: a baseline and the
+    report name the code their numbers came from."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[3]
+    try:
+        sha = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
+                             text=True, timeout=10)
+        if sha.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                "--untracked-files=no"], capture_output=True, text=True,
+                               timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return sha.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
 def new_document(*, command: list[str] | None = None, settings: dict[str, Any] | None = None,
                  cases: list[dict[str, Any]] | None = None) -> dict[str, Any]:
     from crosscheck import __version__
 
     return {
         "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "crosscheck_version": __version__,
-        "command": list(command or []), "started": now(), "finished": None,
+        "commit": source_commit(), "command": list(command or []), "started": now(),
+        "finished": None,
         "interrupted": False, "exit_status": None, "machine": machine(),
         "settings": dict(settings or {}), "engines": {}, "cases": list(cases or []),
         "references": [], "cells": [], "not_run": [], "counts": {}, "resources": {},

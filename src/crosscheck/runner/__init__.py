@@ -50,6 +50,12 @@ def schedule(tasks: list[dict[str, Any]], backend, on_result: Callable[[dict, Re
                         dep["reference_error"] = (f"reference run {result.get('status')}: "
                                                   + (first[0] if first else ""))
                     ready.appendleft(dep)
+            if task.get("kind") == "cell":
+                # More processes' cost passes of this cell, queued last so they run later and
+                # in whichever worker is then free (runner/cell.py, cost_followups).
+                from crosscheck.runner.cell import cost_followups
+
+                ready.extend(cost_followups(task, result))
             on_result(task, result)
     # Anything still waiting depended on a reference that never ran (should not happen).
     for deps in waiting.values():

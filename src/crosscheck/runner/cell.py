@@ -13,6 +13,10 @@ Task dicts (built by :mod:`crosscheck.runner.plan`):
 "reference_error": str|None, "engine_refs": {name: "module:Class"}}``
 
 ``{"kind": "reference", "id", "case", "case_file", "spec", "path", "timeout", "engine_refs"}``
+
+``{"kind": "cost", "id", "cell", "case_file", "engine", "integrator", "dt", "steps", "cost",
+"engine_refs", "timeout"}``: one more process's cost pass of a rigid cell (:func:`cost_followups`
+makes them from the cell's result; the session pools them into the cell's cost).
 """
 
 from __future__ import annotations
@@ -97,6 +101,8 @@ def execute_task(task: dict[str, Any]) -> dict[str, Any]:
     try:
         if task.get("kind") == "reference":
             result = _execute_reference(task)
+        elif task.get("kind") == "cost":
+            result = _execute_cost(task)
         else:
             result = _execute_cell(task)
     except Exception as exc:  # any failure of one cell is that cell's result
@@ -164,6 +170,68 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
     if scene.fluid is not None or not _is_trajectory(output):
         return _finish_fluid(task, scene, output, result, run_seconds)
     return _finish_rigid(task, scene, output, result, run_seconds)
+
+
+def cost_followups(task: dict[str, Any], result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The extra cost tasks of a finished rigid cell whose cost plan asks for more than one
+    process (driver.CostPlan.processes): each times the same number of steps as the cell's own
+    cost pass, in whichever worker is free when it comes up (the scheduler queues them last)."""
+    cost = task.get("cost", True)
+    if task.get("kind") != "cell" or not cost or result.get("fluid"):
+        return []
+    from crosscheck.engines.driver import CostPlan
+
+    plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan()
+    detail = result.get("cost_detail") or {}
+    if plan.processes <= 1 or not detail.get("repeats") or not detail.get("steps"):
+        return []
+    # A long run (its own pass already spent a process's share of the timing budget) is timed
+    # in its own process only: its process offset is small against its length, and more
+    # processes would multiply the run's longest cells.
+    if sum(detail.get("wall_samples") or []) > plan.budget_seconds / plan.processes:
+        result["cost_detail"] = dict(detail, note="; ".join(filter(None, [
+            detail.get("note"), f"timed in one process: its pass took "
+            f"{sum(detail['wall_samples']):.3g} s, more than the budget's share "
+            f"{plan.budget_seconds / plan.processes:.3g} s"])))
+        return []
+    keep = ("case", "case_file", "engine", "integrator", "dt", "timeout", "engine_refs", "cost")
+    return [dict({k: task.get(k) for k in keep}, kind="cost", id=f"{task['id']}#cost{k + 2}",
+                 cell=task["id"], steps=int(detail["steps"]))
+            for k in range(plan.processes - 1)]
+
+
+def _execute_cost(task: dict[str, Any]) -> dict[str, Any]:
+    from crosscheck.engines.driver import CostPlan, measure_cost
+
+    result = {"kind": "cost", "id": task["id"], "cell": task["cell"], "status": "ok"}
+    scene = load_scene(task["case_file"], task.get("engine_refs"))
+    engine = resolve_engine(task["engine"], task.get("engine_refs"))
+    integrator, dt = task["integrator"], float(task["dt"])
+    cost = task.get("cost", True)
+    plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan()
+    result["cost_detail"] = measure_cost(lambda: engine.open(scene, integrator, dt),
+                                         int(task["steps"]), dt, plan).to_dict()
+    result["pid"] = os.getpid()
+    return result
+
+
+def pool_costs(cell: dict[str, Any], extra: list[dict[str, Any]]) -> None:
+    """Replace a cell's cost fields by the pooled cost of its own pass and its followups'."""
+    from crosscheck.engines.driver import merge_costs
+
+    own = cell.get("cost_detail")
+    done = [e["cost_detail"] for e in extra if e.get("status") == "ok" and e.get("cost_detail")]
+    if not own or not done:
+        return
+    merged = merge_costs([own, *done])
+    merged["pids"] = sorted({p for p in [cell.get("pid"), *(e.get("pid") for e in extra)]
+                             if p is not None})
+    failed = [e for e in extra if e.get("status") != "ok"]
+    if failed:
+        merged["note"] = "; ".join(filter(None, [merged.get("note"), (
+            f"{len(failed)} of {len(extra)} extra cost pass(es) failed: "
+            f"{(failed[0].get('reason') or '').splitlines()[:1]}")]))
+    cell.update(_cost_fields(merged))
 
 
 def _cost_fields(cost: dict[str, Any]) -> dict[str, Any]:

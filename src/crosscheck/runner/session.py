@@ -50,6 +50,7 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
     doc = results_doc.new_document(command=command, settings=settings,
                                    cases=[c.to_dict() for c in matrix.cases])
     cells: list[dict[str, Any]] = []
+    extra_costs: dict[str, list[dict[str, Any]]] = {}
     journal_path = outdir / "cells.jsonl"
     journal = open(journal_path, "w", encoding="utf-8")  # noqa: SIM115 - closed in finally
     started = time.monotonic()
@@ -58,6 +59,9 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
     def on_result(task, result):
         journal.write(json.dumps(results_doc.clean(result)) + "\n")
         journal.flush()
+        if task.get("kind") == "cost":  # pooled into its cell's cost at the end
+            extra_costs.setdefault(task["cell"], []).append(result)
+            return
         if task.get("kind") == "reference":
             doc["references"].append({k: result.get(k) for k in (
                 "id", "case", "engine", "integrator", "dt", "status", "reason", "path",
@@ -94,6 +98,11 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
+    from crosscheck.runner.cell import pool_costs
+
+    for cell in cells:
+        pool_costs(cell, extra_costs.get(cell["id"], []))
+    doc["cells"] = [results_doc.light(c) for c in cells]
     # Final order: the matrix's (case, engine, integrator, dt), not arrival order, so two
     # results files of the same run diff cleanly.
     order = {t["id"]: i for i, t in enumerate(matrix.tasks)}
@@ -105,10 +114,11 @@ def run_and_report(matrix, backend, outdir: str | Path, *, command: list[str] | 
     _refresh(doc, cells, backend, started)
     comparison = None
     if baseline is not None:
-        from crosscheck.baseline import compare
+        from crosscheck.baseline import compare, describe
 
         comparison = compare(baseline, doc)
-        doc["baseline"] = dict(comparison.to_dict(), file=baseline_file)
+        doc["baseline"] = dict(comparison.to_dict(), file=baseline_file,
+                               **describe(baseline, doc))
         by_cell: dict[str, list[str]] = {}
         for ch in comparison.regressions:
             by_cell.setdefault(ch.key, []).append(

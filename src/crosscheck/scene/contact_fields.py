@@ -107,15 +107,15 @@ def _pair_name(e: Fields, key: str, names: list[str], has_ground: bool) -> str:
 
 
 def check_contact_sections(top: Fields, contact: bool, has_fluid: bool) -> None:
-    """Statics and pair entries only mean something to contact: a case that declares them without
-    ``[effects] contact = true`` would silently carry geometry and values nothing uses."""
+    """Statics and pair entries only mean something to contact, or (statics) to a fluid, whose
+    obstacles they then are: a case that declares them where nothing uses them would silently
+    carry geometry and values."""
     for key, what in (("statics", "[[statics]]"), ("contact_pairs", "[[contact_pairs]]")):
+        if key == "statics" and has_fluid:
+            continue  # a fluid case's statics are obstacles in the fluid (docs/fluid.md)
         if top.has(key) and not contact:
             raise top.error(key, f"[effects] contact = true in a case with {what} (without "
                             "contact nothing touches them)")
-    if top.has("statics") and has_fluid:
-        raise top.error("statics", "no [[statics]] in a case with [fluid] (the fluid does not "
-                        "see them; its obstacles go under [fluid])")
 
 
 def check_reserved_names(bodies: list[str], file, contact: bool) -> None:

@@ -22,14 +22,17 @@ from crosscheck.scene.fields import Fields
 from crosscheck.scene.shapes import Box, Circle, Placed
 
 SIDES_2D = ("left", "right", "bottom", "top")
-WALL_KINDS = ("solid", "open")
+WALL_KINDS = ("solid", "open", "inflow")
 OUTPUT_FIELDS = ("u", "v", "phi", "p")
+INFLOW_PROFILES = ("parabolic", "uniform")
+VISCOSITY_SOLVERS = ("explicit", "implicit")
 
 
 # -- shapes ------------------------------------------------------------------------------------
 # Obstacles and region parts are shapes of crosscheck.scene.shapes placed at their ``center``
-# without rotation (the case file has no orientation for them), so the solver rasterises them
-# through the shapes' own signed distances; only the layer, unbounded, is the fluid's own.
+# (an obstacle box may be turned by ``angle``; a polygon's vertices are world points), so the
+# solver reads them through the shapes' own signed distances; only the layer, unbounded, is the
+# fluid's own.
 @dataclass(frozen=True)
 class Layer:
     """Fluid below the surface ``y = depth + amplitude * cos(2 pi x / wavelength + phase)``.
@@ -86,6 +89,51 @@ class Lid:
 
 
 @dataclass(frozen=True)
+class Inflow:
+    """Velocity imposed on an ``"inflow"`` side, normal to it and into the domain (m/s).
+
+    ``parabolic``: ``U(s) = 4 speed s (W - s) / W^2`` across the side of width W (``speed`` is the
+    centre-line maximum, the mean is 2/3 of it), the Poiseuille profile of a channel;
+    ``uniform``: ``speed`` everywhere. ``ramp_time`` > 0 scales it by ``sin(pi t / (2 ramp))``
+    until ``t = ramp_time``. The tangential velocity on the side is zero."""
+
+    side: str
+    profile: str
+    speed: float
+    ramp_time: float = 0.0
+
+    def mean_speed(self) -> float:
+        return self.speed * (2.0 / 3.0 if self.profile == "parabolic" else 1.0)
+
+    def factor(self, t: float) -> float:
+        if self.ramp_time <= 0.0 or t >= self.ramp_time:
+            return 1.0
+        return math.sin(0.5 * math.pi * t / self.ramp_time)
+
+    def face_average(self, s0: np.ndarray, s1: np.ndarray, width: float) -> np.ndarray:
+        """Mean of the profile over each face ``[s0, s1]`` along the side: the face's flux is
+        exact, so the channel carries exactly ``width * mean_speed()``."""
+        if self.profile == "uniform":
+            return np.full(np.shape(s0), self.speed)
+
+        def primitive(s):  # integral of 4 U s (W - s) / W^2
+            return 4.0 * self.speed * (0.5 * width * s * s - s ** 3 / 3.0) / width ** 2
+
+        return (primitive(s1) - primitive(s0)) / (s1 - s0)
+
+
+@dataclass(frozen=True)
+class ForceOutput:
+    """Force measurement on the obstacles (docs/fluid.md, "Forces on a body"). ``window``:
+    ``(d0, d1)`` in m, the distances from each obstacle's surface where the smooth weight of the
+    momentum balance starts to fall from 1 and where it reaches 0; ``None``: chosen from the
+    obstacle's size and clearance."""
+
+    enabled: bool = False
+    window: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
 class ParticleSpec:
     """Particle level set (Enright et al. 2002) parameters."""
 
@@ -101,6 +149,7 @@ class OutputSpec:
     fields: tuple[str, ...] = ("u", "v", "phi")
     field_every: float | None = None   # s; None: the run decides (about 40 frames)
     probe_x: float | None = None       # m; x of the surface-height probe; None: first column
+    forces: ForceOutput = ForceOutput()
 
 
 @dataclass(frozen=True)
@@ -112,7 +161,10 @@ class FluidSpec:
     walls: dict[str, str] = field(default_factory=dict)
     no_slip: bool = False
     lid: Lid | None = None
-    obstacles: tuple[Placed, ...] = ()  # a placed Box or Circle each
+    inflow: Inflow | None = None
+    obstacles: tuple[Placed, ...] = ()  # a placed Box, Circle or Polygon each
+    obstacle_names: tuple[str, ...] = ()  # one per obstacle: its name, or "obstacle<k>"
+    viscosity_solver: str = "explicit"
     initial: tuple[RegionPart, ...] = ()   # empty: the domain is full of fluid (no free surface)
     density: float = 1000.0
     kinematic_viscosity: float = 0.0
@@ -152,23 +204,32 @@ def _point(f: Fields, key: str, dim: int, default: Any = None) -> tuple[float, .
     return tuple(default) if v is None else tuple(float(x) for x in v)
 
 
-def _shape(f: Fields, dim: int, *, allow_layer: bool) -> Shape:
-    kinds = ["box", "circle"] + (["layer"] if allow_layer else [])
+def _shape(f: Fields, dim: int, *, allow_layer: bool, obstacle: bool = False) -> Shape:
+    kinds = ["box", "circle"] + (["polygon"] if obstacle else []) + (["layer"] if allow_layer
+                                                                     else [])
     present = [k for k in kinds if f.has(k)]
     if len(present) != 1:
         raise CaseError(f.file, f.path, f"exactly one shape key of {kinds}",
-                        sorted(k for k in f.table))
+                        sorted(k for k in f.table if k != "name"))
     kind = present[0]
     s = f.sub(kind)
     if kind == "box":
         center = _point(s, "center", dim)
         size = tuple(float(v) for v in s.vector("size", dim, positive=True, unit="m"))
-        shape: Shape = Placed(Box(size=size), center)
+        angle = s.number("angle", 0.0, unit="rad") if obstacle else 0.0
+        # no angle: the pure translation the fluid always had (bit for bit the same distances)
+        shape: Shape = Placed(Box(size=size), center, None if angle == 0.0 else angle)
     elif kind == "circle":
         if dim != 2:
             raise s.error("", "a circle only in 2D cases")
         center = _point(s, "center", dim)
         shape = Placed(Circle(radius=s.number("radius", positive=True, unit="m")), center)
+    elif kind == "polygon":
+        # the body parser's checks (at least 3 points, non-zero area, convex; stored CCW), with
+        # the vertices in world coordinates
+        from crosscheck.scene.loader import _polygon
+
+        shape = Placed(_polygon(s), (0.0, 0.0))
     else:
         amplitude = s.number("amplitude", 0.0, unit="m")
         wavelength = s.number("wavelength", None, positive=True, unit="m")
@@ -179,8 +240,22 @@ def _shape(f: Fields, dim: int, *, allow_layer: bool) -> Shape:
     return shape
 
 
-def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
-    """Read the ``[fluid]`` table of a case (see docs/fluid.md for every key)."""
+def _obstacles(f: Fields, dim: int) -> tuple[tuple[Placed, ...], tuple[str, ...]]:
+    shapes, names = [], []
+    for k, o in enumerate(f.table_list("obstacles", [])):
+        name = o.string("name", f"obstacle{k}")
+        if not name.strip() or name in names:
+            raise o.error("name", "a non-empty name no other obstacle has", name)
+        shapes.append(_shape(o, dim, allow_layer=False, obstacle=True))
+        names.append(name)
+        o.done()
+    return tuple(shapes), tuple(names)
+
+
+def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpec:
+    """Read the ``[fluid]`` table of a case (see docs/fluid.md for every key). ``statics``: the
+    case's ``[[statics]]`` (``scene.model.Static``), which are obstacles in the fluid after the
+    section's own, under their names."""
     f = fields
     if dimension != 2:
         raise CaseError(f.file, "case.dimension",
@@ -205,6 +280,24 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
         for side in SIDES_2D:
             walls[side] = wf.string(side, "solid", choices=WALL_KINDS)
         wf.done()
+    inflow_sides = [s for s in SIDES_2D if walls[s] == "inflow"]
+    if len(inflow_sides) > 1:
+        raise wf.error(inflow_sides[1], "at most one \"inflow\" side",
+                       walls[inflow_sides[1]])
+    inflow = None
+    inf = f.sub("inflow", None)
+    if inf is not None and not inflow_sides:
+        raise f.error("inflow", "a side with fluid.walls.<side> = \"inflow\" for this table",
+                      dict(inf.table))
+    if inflow_sides:
+        if inf is None:
+            raise CaseError(f.file, f.field("inflow"), "this table (profile, speed), required "
+                            f"when fluid.walls.{inflow_sides[0]} = \"inflow\"")
+        inflow = Inflow(side=inflow_sides[0],
+                        profile=inf.string("profile", "parabolic", choices=INFLOW_PROFILES),
+                        speed=inf.number("speed", positive=True, unit="m/s"),
+                        ramp_time=inf.number("ramp_time", 0.0, nonnegative=True, unit="s"))
+        inf.done()
 
     lid = None
     lf = f.sub("lid", None)
@@ -224,8 +317,13 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
         nu = f.number("dynamic_viscosity", nonnegative=True, unit="Pa s") / density
     no_slip = f.boolean("no_slip", nu > 0)
 
-    obstacles = tuple(_shape(o, dimension, allow_layer=False)
-                      for o in f.table_list("obstacles", []))
+    obstacles, obstacle_names = _obstacles(f, dimension)
+    for st in statics:
+        if st.name in obstacle_names:
+            raise f.error("obstacles", f"obstacle names other than the static {st.name!r}",
+                          list(obstacle_names))
+    obstacles += tuple(st.placed() for st in statics)
+    obstacle_names += tuple(st.name for st in statics)
 
     parts = []
     for entry in f.table_list("initial", []):
@@ -271,17 +369,37 @@ def parse_fluid(fields: Fields, dimension: int) -> FluidSpec:
     output = OutputSpec()
     of = f.sub("output", None)
     if of is not None:
-        names = of.string_list("fields", ("u", "v", "phi"))
+        names = of.string_list("fields", ["u", "v", "phi"])
         for i, name in enumerate(names):
             if name not in OUTPUT_FIELDS:
                 raise CaseError(of.file, f"{of.field('fields')}[{i}]",
                                 f"one of {list(OUTPUT_FIELDS)}", name)
+        forces = ForceOutput(of.boolean("forces", False))
+        if of.has("force_window"):
+            win = of.vector("force_window", 2, unit="m")
+            if not 0.0 <= win[0] < win[1]:
+                raise of.error("force_window", "[d0, d1] with 0 <= d0 < d1 (m from the surface)",
+                               list(win))
+            forces = ForceOutput(forces.enabled, (float(win[0]), float(win[1])))
         output = OutputSpec(tuple(names), of.number("field_every", None, positive=True, unit="s"),
-                            of.number("probe_x", None, nonnegative=True, unit="m"))
+                            of.number("probe_x", None, nonnegative=True, unit="m"), forces)
         of.done()
+    if output.forces.enabled and not obstacles:
+        raise of.error("forces", "obstacles to measure forces on (fluid.obstacles or "
+                       "[[statics]])", True)
+    # Cut-cell walls and an inflow need the implicit viscous step: the ghost-fluid Dirichlet
+    # condition of a wall a small fraction theta of a cell away has a 1/theta coefficient, which
+    # an explicit step would pay for with steps theta times shorter.
+    default_visc = "implicit" if (obstacles or inflow is not None) else "explicit"
+    viscosity_solver = f.string("viscosity_solver", default_visc, choices=VISCOSITY_SOLVERS)
+    if viscosity_solver == "explicit" and obstacles and nu > 0 and no_slip:
+        raise f.error("viscosity_solver", "\"implicit\" for a viscous no-slip fluid with "
+                      "obstacles (their cut-cell walls need the implicit ghost-fluid stencil)",
+                      viscosity_solver)
     f.done()
     return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
-                     obstacles=obstacles, initial=tuple(parts), density=density,
+                     inflow=inflow, obstacles=obstacles, obstacle_names=obstacle_names,
+                     viscosity_solver=viscosity_solver, initial=tuple(parts), density=density,
                      kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit, time_step=time_step,
                      redistance_every=redistance_every, redistancing=redistancing,
                      pressure_tolerance=ptol,

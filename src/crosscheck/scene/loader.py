@@ -125,9 +125,6 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     run = _run(top.sub("run"), unchecked, fluid=top.has("fluid"))
     materials = parse_materials(top.sub("materials", {}), dimension)
     has_fluid = top.has("fluid")
-    fluid = None
-    if has_fluid:
-        fluid = _fluid(top.sub("fluid"), dimension)
 
     body_tables = top.table_list("bodies", [])
     if not body_tables and not has_fluid:
@@ -151,6 +148,10 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
                             "a name other than 'ground' (it names the [ground] plane)", n)
         if n in names or static_names.index(n) != i:
             raise CaseError(file, f"statics[{i}].name", "a name no body or other static has", n)
+    fluid = None
+    if has_fluid:
+        # after the statics: in a fluid case they are obstacles in the fluid
+        fluid = _fluid(top.sub("fluid"), dimension, statics)
     pair_overrides = parse_pair_overrides(top.table_list("contact_pairs", []), names,
                                           static_names, ground is not None, dimension)
     reference = _reference(top.sub("reference", {}), unchecked, base_dir, dimension=dimension,
@@ -167,11 +168,11 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     )
 
 
-def _fluid(fields: Fields, dimension: int) -> Any:
+def _fluid(fields: Fields, dimension: int, statics: tuple = ()) -> Any:
     # The fluid section has its own parser beside the solver that understands it.
     from crosscheck.scene.fluid import parse_fluid
 
-    return parse_fluid(fields, dimension)
+    return parse_fluid(fields, dimension, statics)
 
 
 # -- sections -------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from crosscheck.errors import CaseError
 from crosscheck.scene.fields import Fields
 
 # The Reynolds numbers of Ghia et al.'s Tables I and II.
@@ -31,6 +32,18 @@ CASE_TABLES = {
 }
 CASE_TABLES.update({f"ghia_1982_re{_re}": f"lid-driven cavity centrelines at Re = {_re}"
                     for _re in GHIA_REYNOLDS})
+# The DFG benchmark (Schafer & Turek 1996): channel flow past a cylinder. The geometry is
+# checked in units of the cylinder's diameter D, so a scaled copy of the channel is accepted.
+SCHAFER_TUREK = {"schafer_turek_2d1": ("2D-1", 20.0), "schafer_turek_2d2": ("2D-2", 100.0)}
+CASE_TABLES.update({
+    "schafer_turek_2d1": "DFG benchmark 2D-1, channel flow past a cylinder at Re = 20 (steady): "
+                         "drag, lift, pressure difference",
+    "schafer_turek_2d2": "DFG benchmark 2D-2, channel flow past a cylinder at Re = 100 "
+                         "(periodic): maximum drag and lift, Strouhal number",
+})
+# The DFG channel in cylinder diameters: 22 D long, 4.1 D high, the centre 2 D from the inflow
+# side and from the bottom wall. Exact inputs: only round-off is forgiven.
+DFG_GEOMETRY_RTOL = 1e-6
 
 
 def ghia_reynolds(reynolds: float, table: str = "ghia_1982") -> int:
@@ -64,7 +77,58 @@ def check_published_table(f: Fields, name: str, fluid: Any, gravity: Any) -> Non
                           "water column, which needs a free surface (fluid.initial) and "
                           "effects.gravity", name)
         return
+    if name in SCHAFER_TUREK:
+        dfg_cylinder(f, name, fluid)
+        return
     cavity_reynolds(f, name, fluid)
+
+
+def dfg_cylinder(f: Fields, name: str, fluid: Any) -> tuple[Any, str, float]:
+    """The DFG case's cylinder (the placed circle, its name) and its Reynolds number
+    ``U_mean D / nu``, after checking the case is the benchmark: one circular obstacle, a
+    parabolic inflow on the left, an open right side, solid top and bottom, no free surface, a
+    viscous fluid, the forces measured (and, for 2D-1, the pressure saved for the pressure
+    difference), the channel's proportions, and the table's Reynolds number."""
+    label, re_table = SCHAFER_TUREK[name]
+
+    def refuse(expected: str, got: Any) -> CaseError:
+        return f.error("table", f"a case {name} describes: {expected}", got)
+
+    if fluid.has_surface:
+        raise refuse("a channel full of fluid (no fluid.initial)", "a free surface")
+    circles = [(o, n) for o, n in zip(fluid.obstacles, fluid.obstacle_names, strict=True)
+               if getattr(o.shape, "kind", None) == "circle"]
+    if len(fluid.obstacles) != 1 or len(circles) != 1:
+        raise refuse("exactly one obstacle, a circle (the cylinder)",
+                     f"{len(fluid.obstacles)} obstacles, {len(circles)} circles")
+    walls = dict(fluid.walls)
+    want = {"left": "inflow", "right": "open", "bottom": "solid", "top": "solid"}
+    if walls != want:
+        raise refuse(f"fluid.walls = {want}", walls)
+    if fluid.inflow.profile != "parabolic":
+        raise refuse("a parabolic inflow (fluid.inflow.profile)", fluid.inflow.profile)
+    if fluid.kinematic_viscosity <= 0 or not fluid.no_slip:
+        raise refuse("a viscous fluid with no-slip walls", fluid.kinematic_viscosity)
+    if not fluid.output.forces.enabled:
+        raise refuse("the forces on the cylinder measured (fluid.output.forces = true)", False)
+    if label == "2D-1" and "p" not in fluid.output.fields:
+        raise refuse("the pressure saved for the pressure difference (\"p\" in "
+                     "fluid.output.fields)", list(fluid.output.fields))
+    circle, cname = circles[0]
+    d = 2.0 * float(circle.shape.radius)
+    cx, cy = (float(c) for c in circle.position)
+    lx, ly = fluid.domain
+    for what, value, expected in (("length", lx, 22.0 * d), ("height", ly, 4.1 * d),
+                                  ("centre x", cx, 2.0 * d), ("centre y", cy, 2.0 * d)):
+        if abs(value - expected) > DFG_GEOMETRY_RTOL * expected:
+            raise refuse(f"the DFG channel: {what} {expected:.6g} m for a cylinder of "
+                         f"diameter {d:.6g} m (22 D long, 4.1 D high, centre at (2 D, 2 D))",
+                         value)
+    reynolds = fluid.inflow.mean_speed() * d / fluid.kinematic_viscosity
+    if abs(reynolds - re_table) > REYNOLDS_RTOL * re_table:
+        raise refuse(f"Re = U_mean D / nu = {re_table:g} (U_mean = 2/3 of inflow.speed)",
+                     f"Re = {reynolds:.10g}")
+    return circle, cname, reynolds
 
 
 def cavity_reynolds(f: Fields, name: str, fluid: Any) -> int:

@@ -32,7 +32,6 @@ no other point beats in both; the plot marks it. :func:`cheapest` answers ``--ta
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -343,90 +342,161 @@ def cheapest(series: list[Series], target: float) -> dict[str, Any] | None:
 
 def pareto(series: list[Series]) -> list[tuple[str, float, float, float]]:
     """(label, dt, cost, error) points no other point beats in both cost and error."""
+    from crosscheck.report.pareto import front
+
     pts = [(s.label, d, c, e) for s in series
            for d, c, e in zip(s.dts, s.costs, s.errors, strict=True)
            if c is not None and c > 0 and e is not None]
-    front = [p for p in pts if not any((q[2] <= p[2] and q[3] < p[3]) or
-                                       (q[2] < p[2] and q[3] <= p[3]) for q in pts)]
-    return sorted(front, key=lambda p: p[2])
+    return [pts[i] for i in front([(p[2], p[3]) for p in pts])]
 
 
 def figure(case: str, metric: str | None, series: list[Series],
            target: float | None = None) -> bytes:
-    """PNG: error against cost (Pareto), and error against dt (convergence). Points at the
-    metric's floor are hollow; each series' stability bracket is a bar on the dt axis."""
+    """PNG: error against cost (with the Pareto front) and error against dt (the slope is the
+    order), one colour and marker per engine-integrator (crosscheck.report.style). Points at
+    the metric's floor are hollow and the floor itself is drawn (the round-off floor, and
+    RESOLUTION_FACTOR x a metric's stated resolution); each series' stability frontier is a
+    dotted vertical line at its largest stable step, and a strip under the dt panel brackets
+    it (:func:`_frontiers`). Both axes of both panels are logarithmic with labelled ticks."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
-    from crosscheck.report.plots import ENGINE_COLORS, FLOOR, STYLES, log_axes
+    from crosscheck.report.figure import log_ticks, png
+    from crosscheck.report.plots import FLOOR
+    from crosscheck.report.style import Looks
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12.5, 4.6))
-    markers = "osD^v<>ph"
-    per_engine: dict[str, int] = {}
-    brackets = []
+    looks = Looks([s.label for s in series])
+    strip = max(0.9, 0.16 * len(series))  # the stability strip: a row per series
+    height = 4.6 + strip
+    fig = plt.figure(figsize=(13.0, height))
+    grid = fig.add_gridspec(2, 2, height_ratios=(4.0, strip))
+    ax1 = fig.add_subplot(grid[:, 0])
+    ax2 = fig.add_subplot(grid[0, 1])
+    ax3 = fig.add_subplot(grid[1, 1], sharex=ax2)
+    handles: dict[str, Any] = {}
+    drawn = []
     for s in series:
-        k = per_engine.get(s.engine, 0)
-        per_engine[s.engine] = k + 1
-        color = ENGINE_COLORS.get(s.engine, "#555555")
-        style = dict(color=color, linestyle=STYLES[k % len(STYLES)], markersize=4)
-        marker = markers[k % len(markers)]
-        if s.smallest_unstable_dt is not None and s.largest_stable_dt is not None:
-            brackets.append((s, color, marker))
+        look = looks[s.label]
         pts = [(d, c, max(e, FLOOR), bool(f)) for d, c, e, f in
                zip(s.dts, s.costs, s.errors, s.floor or [""] * len(s.dts), strict=True)
                if e is not None]
-        if not pts:
-            continue
         label = s.label + (f" (p={s.order:.2f})" if s.order is not None else "")
+        handles[label] = Line2D([], [], color=look.color, marker=look.marker, markersize=5)
         for ax, xs in ((ax1, [c for _, c, _, _ in pts]), (ax2, [d for d, _, _, _ in pts])):
             keep = [(x, e, f) for x, (_, _, e, f) in zip(xs, pts, strict=True)
                     if x is not None and x > 0]
             if not keep:
                 continue
-            ax.plot([x for x, _, _ in keep], [e for _, e, _ in keep], marker="none",
-                    label=label, **style)
-            filled = [(x, e) for x, e, f in keep if not f]
-            hollow = [(x, e) for x, e, f in keep if f]
-            if filled:
-                ax.plot(*zip(*filled, strict=True), linestyle="none", marker=marker,
-                        color=color, markersize=4)
-            if hollow:
-                ax.plot(*zip(*hollow, strict=True), linestyle="none", marker=marker,
-                        markerfacecolor="none", markeredgecolor=color, markersize=5)
+            ax.plot([x for x, _, _ in keep], [e for _, e, _ in keep], color=look.color,
+                    linewidth=1.2)
+            for x, e, f in keep:
+                ax.plot([x], [e], linestyle="none", marker=look.marker, markersize=6,
+                        color=look.color, markerfacecolor="none" if f else look.color)
+            drawn += [e for _, e, _ in keep]
     front = pareto(series)
     if front:
-        ax1.plot([p[2] for p in front], [max(p[3], FLOOR) for p in front], color="k",
-                 linewidth=2.5, alpha=0.25, label="Pareto front")
+        ax1.step([p[2] for p in front], [max(p[3], FLOOR) for p in front], where="post",
+                 color="k", linewidth=3, alpha=0.25)
+        handles["Pareto front"] = Line2D([], [], color="k", linewidth=3, alpha=0.25)
     if target is not None:
-        ax1.axhline(target, color="k", linestyle=":", linewidth=1, label=f"target {target:g}")
+        ax1.axhline(target, color="k", linestyle=":", linewidth=1)
+        handles[f"target {target:g}"] = Line2D([], [], color="k", linestyle=":")
+    for lo, hi, text in _floors(series, drawn):
+        for ax in (ax1, ax2):
+            if hi > lo:
+                ax.axhspan(lo, hi, color="#999999", alpha=0.2, linewidth=0)
+            else:
+                ax.axhline(lo, color="#777777", linestyle="-.", linewidth=0.9)
+        ax2.annotate(text, (0.0, hi), xycoords=("axes fraction", "data"), xytext=(3, 3),
+                     textcoords="offset points", fontsize=7, color="#555555")
+    _frontiers(ax2, ax3, series, looks)
+    if any(s.largest_stable_dt for s in series):
+        handles["largest stable dt (the stability frontier)"] = Line2D(
+            [], [], color="#555555", linestyle=":")
     for ax, xlabel in ((ax1, "cost: wall s per simulated s"), (ax2, "dt (s)")):
-        log_axes(ax)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
         ax.set_xlabel(xlabel, fontsize=8)
         ax.set_ylabel(metric or "error", fontsize=8)
-        ax.grid(True, alpha=0.3)
+        ax.grid(True, which="major", alpha=0.3)
         ax.tick_params(labelsize=7)
-    # Stability brackets: a bar from the largest stable to the smallest unstable step, stacked
-    # at the bottom of the convergence panel in axes coordinates (they share the dt axis).
-    if brackets:
-        trans = ax2.get_xaxis_transform()
-        for j, (s, color, _marker) in enumerate(brackets):
-            y = 0.03 + 0.035 * j
-            ax2.plot([s.largest_stable_dt, s.smallest_unstable_dt], [y, y], transform=trans,
-                     color=color, linewidth=3, solid_capstyle="butt")
-            ax2.plot([s.smallest_unstable_dt], [y], transform=trans, marker="x", color=color,
-                     markersize=5)
+        ax.margins(x=0.08, y=0.12)
+    ax2.set_xlim(*_dt_range(series, ax2.get_xlim()))
+    ax2.set_xlabel("")
+    ax2.tick_params(labelbottom=False)
+    ax3.set_xlabel("dt (s)", fontsize=8)
+    for ax in (ax1, ax2):
+        log_ticks(ax, "both")
     ax1.set_title("accuracy against cost (hollow: at the metric's floor)", fontsize=9)
-    ax2.set_title("convergence (slope = order; bars: stable .. unstable step)", fontsize=9)
-    if ax2.get_legend_handles_labels()[0]:
-        ax2.legend(fontsize=6, loc="upper left")
+    ax2.set_title("convergence: slope = order", fontsize=9)
+    fig.legend(list(handles.values()), list(handles.keys()), loc="lower center",
+               ncol=min(4, len(handles)), fontsize=7, frameon=False)
+    rows = (len(handles) + 3) // 4
     fig.suptitle(f"{case}: sweep", fontsize=10)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fig.tight_layout(rect=(0, (0.2 * rows + 0.1) / height, 1, 1))
+    data = png(fig, 90)
     plt.close(fig)
-    return buf.getvalue()
+    return data
+
+
+def _floors(series: list[Series], drawn: list[float]) -> list[tuple[float, float, str]]:
+    """The floors in play as (low, high, words): round-off when some point is near it (a
+    line), and RESOLUTION_FACTOR x the metric's resolution (errors below it are at the floor):
+    a line, or a band when the resolution differs between runs (a flip period's crossing
+    interpolation resolves differently in each run)."""
+    out = []
+    if drawn and min(drawn) < 1e3 * ERROR_FLOOR:
+        out.append((ERROR_FLOOR, ERROR_FLOOR, f"round-off floor {ERROR_FLOOR:g}"))
+    res = sorted({r for s in series for r in s.resolutions if r})
+    if res:
+        lo, hi = RESOLUTION_FACTOR * res[0], RESOLUTION_FACTOR * res[-1]
+        span = f"{lo:.2g}" if hi <= lo * 1.01 else f"{lo:.2g} to {hi:.2g}"
+        out.append((lo, hi if hi > lo * 1.01 else lo,
+                    f"floor: {RESOLUTION_FACTOR:g} x the metric's resolution ({span})"))
+    return out
+
+
+def _dt_range(series: list[Series], current: tuple[float, float]) -> tuple[float, float]:
+    """The dt axis covers every step run and every frontier step, with a margin."""
+    dts = [d for s in series for d in [*s.dts, *(p["dt"] for p in s.probes),
+                                       s.largest_stable_dt, s.smallest_unstable_dt] if d]
+    if not dts:
+        return current
+    return min(min(dts) / 1.3, current[0]), max(max(dts) * 1.3, current[1])
+
+
+def _frontiers(ax, strip, series: list[Series], looks) -> None:
+    """The stability frontier: a dotted line on the convergence panel at each series' largest
+    stable step, and in the strip below a row per series: a bar from its largest stable step
+    to its smallest unstable one (x), a triangle when nothing failed up to the largest step
+    tried, an x alone when every step blew up, "n/a" when it could not run."""
+    for j, s in enumerate(series):
+        look = looks[s.label]
+        lo, hi = s.largest_stable_dt, s.smallest_unstable_dt
+        if lo:
+            ax.axvline(lo, color=look.color, linestyle=":", linewidth=1.2)
+            strip.plot([lo], [j], marker="|", markersize=9, color=look.color)
+        if lo and hi:
+            strip.plot([lo, hi], [j, j], color=look.color, linewidth=4, solid_capstyle="butt")
+        if hi:
+            strip.plot([hi], [j], marker="x", markersize=7, color=look.color)
+        elif lo:
+            strip.plot([lo], [j], marker=">", markersize=7, color=look.color)
+        if s.not_applicable:
+            strip.annotate("n/a", (0.01, j), xycoords=("axes fraction", "data"), fontsize=6,
+                           va="center")
+    strip.set_yticks(range(len(series)), [s.label for s in series], fontsize=6)
+    strip.set_ylim(len(series) - 0.5, -0.5)
+    strip.set_ylabel("stability", fontsize=8)
+    strip.tick_params(axis="x", labelsize=7)
+    strip.grid(True, axis="x", alpha=0.3)
 
 
 def _short(reason: str) -> str:
@@ -445,15 +515,15 @@ def table(metric: str | None, series: list[Series], target: float | None = None)
     notes: list[str] = []
     for s in series:
         if s.not_applicable:
-            lines.append(f"| {s.label} | " + " | ".join("" for _ in dts)
-                         + f" | n/a | | {s.not_applicable[:60]} |")
+            lines.append(f"| {s.label} | " + " | ".join("n/a" for _ in dts)
+                         + f" | n/a | n/a | not applicable: {s.not_applicable[:60]} |")
             continue
         by_dt = {d: k for k, d in enumerate(s.dts)}
         cells = []
         for d in dts:
             k = by_dt.get(d)
             if k is None:
-                cells.append("")
+                cells.append("not run")
                 continue
             st, e = s.statuses[k], s.errors[k]
             if st in UNSTABLE:
@@ -463,13 +533,14 @@ def table(metric: str | None, series: list[Series], target: float | None = None)
                 cells.append(f"not measured: {_short(why)}" if why else "not measured")
             else:
                 cells.append(f"{e:.3g}" + (" (floor)" if s.floor and s.floor[k] else ""))
-        pw = ", ".join("-" if p is None else f"{p:.2f}" for p in s.pairwise)
+        pw = ", ".join("-" if p is None else f"{p:.2f}" for p in s.pairwise) or \
+            "none: fewer than two measured steps"
         if s.order is not None:
             order = (f"{s.order:.2f} (dt " + ", ".join(f"{d:g}" for d in s.order_points) + ")")
         else:
             order = s.order_note
-        lines.append(f"| {s.label} | " + " | ".join(cells) + f" | {order} | {pw} | "
-                     + s.frontier + " |")
+        lines.append(f"| {s.label} | " + " | ".join(cells) + f" | {order or 'no steps run'} "
+                     f"| {pw} | {s.frontier or 'no steps run'} |")
         left = [f"dt={d:g}: {r}" for d, r in zip(s.dts, s.floor, strict=True) if r]
         if left:
             notes.append(f"- {s.label}: left out of the order: " + "; ".join(left))

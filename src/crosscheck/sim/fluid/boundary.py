@@ -13,18 +13,34 @@ solid=...)``); a scene without moving solids hands it the static one built here 
   the face is solid. The projection imposes ``u . n = u_solid . n`` there (the face keeps this
   value and enters the divergence with it), viscosity sees it as the wall velocity.
 
-The solver has staircase walls only: faces are 0 or 1, a face touching a solid cell is solid.
-Both are checked when a boundary is built, since a fractional face would otherwise be silently
-taken as open (cut cells would weight the pressure stencil by the open fraction instead).
+Two kinds of boundary:
+
+* **staircase** (``SolidBoundary.from_cells``): faces 0 or 1, a face touching a solid cell is
+  solid (both checked). What a cell mask gives; the tests' moving blocks use it.
+* **cut cells** (``SolidBoundary.from_shapes``, what the scene's obstacles give): faces carry the
+  exact solid fraction of the cell edge, and the boundary also holds the solid's signed distance
+  at the u samples, v samples and cell centres (``u_dist``, ``v_dist``, ``c_dist``) and the open
+  area of every cell (``fluid_area``). The projection weights each face by its open fraction
+  (Batty, Bertails and Bridson 2007; Ng, Min and Gibou 2009), the viscous step puts the no-slip
+  wall where the distance changes sign between two samples (ghost fluid, Gibou et al. 2002), and
+  path clipping stops at the zero of the interpolated distance. ``cells`` are the cells whose
+  centre is inside the solid (level set filling, particles, measurements), as before; a cell is a
+  pressure unknown when any of its faces is open, wherever its centre is.
+
+A moving solid (two-way coupling) builds a new boundary every step with ``from_shapes`` and its
+velocities; the face velocities are then what the solid's rigid motion gives at each face.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from crosscheck.scene.fluid import FluidSpec
+from crosscheck.sim.fluid import cutcell
 from crosscheck.sim.fluid.pressure import SOLID
 
 SIDES = ("left", "right", "bottom", "top")
@@ -37,8 +53,16 @@ class SolidBoundary:
     v_frac: np.ndarray
     u_solid: np.ndarray
     v_solid: np.ndarray
+    #: cut cells: the solid's signed distance at the u samples, v samples and cell centres (m,
+    #: negative inside), and the open (fluid) area fraction of every cell; all None: staircase
+    u_dist: np.ndarray | None = None
+    v_dist: np.ndarray | None = None
+    c_dist: np.ndarray | None = None
+    fluid_area: np.ndarray | None = None
     #: whether any cell is solid (path clipping and level-set filling are skipped if not)
     has_cells: bool = field(init=False)
+    #: whether the boundary has cut cells (distances and areas)
+    cut: bool = field(init=False)
 
     def __post_init__(self) -> None:
         nx, ny = self.cells.shape
@@ -48,16 +72,33 @@ class SolidBoundary:
             if getattr(self, name).shape != shape:
                 raise ValueError(f"SolidBoundary.{name} has shape {getattr(self, name).shape}, "
                                  f"expected {shape} for {nx} x {ny} cells")
+        cut_parts = {"u_dist": (nx + 1, ny), "v_dist": (nx, ny + 1), "c_dist": (nx, ny),
+                     "fluid_area": (nx, ny)}
+        given = [getattr(self, k) is not None for k in cut_parts]
+        if any(given) and not all(given):
+            raise ValueError("SolidBoundary: cut cells need all of u_dist, v_dist, c_dist and "
+                             "fluid_area")
+        cut = all(given)
+        if cut:
+            for name, shape in cut_parts.items():
+                if getattr(self, name).shape != shape:
+                    raise ValueError(f"SolidBoundary.{name} has shape "
+                                     f"{getattr(self, name).shape}, expected {shape}")
         for name in ("u_frac", "v_frac"):
             f = getattr(self, name)
-            if not np.all((f == 0.0) | (f == 1.0)):
-                raise ValueError(f"SolidBoundary.{name}: fractions other than 0 and 1 (cut "
-                                 "cells) are not implemented")
-        need_u, need_v = _faces_touching(self.cells)
-        if np.any(need_u & (self.u_frac[1:-1] == 0.0)) or \
-                np.any(need_v & (self.v_frac[:, 1:-1] == 0.0)):
-            raise ValueError("SolidBoundary: a face next to a solid cell must be solid")
+            if cut:
+                if not np.all((f >= 0.0) & (f <= 1.0)):
+                    raise ValueError(f"SolidBoundary.{name}: fractions outside [0, 1]")
+            elif not np.all((f == 0.0) | (f == 1.0)):
+                raise ValueError(f"SolidBoundary.{name}: fractions other than 0 and 1 need "
+                                 "the cut-cell distances (SolidBoundary.from_shapes)")
+        if not cut:
+            need_u, need_v = _faces_touching(self.cells)
+            if np.any(need_u & (self.u_frac[1:-1] == 0.0)) or \
+                    np.any(need_v & (self.v_frac[:, 1:-1] == 0.0)):
+                raise ValueError("SolidBoundary: a face next to a solid cell must be solid")
         object.__setattr__(self, "has_cells", bool(self.cells.any()))  # frozen: set once here
+        object.__setattr__(self, "cut", cut)
 
     @classmethod
     def from_cells(cls, cells: np.ndarray, open_sides: np.ndarray,
@@ -83,28 +124,89 @@ class SolidBoundary:
         return cls(cells, u_frac, v_frac, u_solid, v_solid)
 
 
+    @classmethod
+    def from_shapes(cls, shapes: Sequence[Any], nx: int, ny: int, dx: float,
+                    open_sides: np.ndarray, u_solid: np.ndarray | None = None,
+                    v_solid: np.ndarray | None = None) -> SolidBoundary:
+        """Cut-cell boundary of the union of convex 2D ``shapes`` (anything with
+        ``signed_distance`` and ``bounding_box`` in world coordinates: the placed circles, boxes
+        and polygons of ``scene.shapes``) on an ``nx`` x ``ny`` grid of cell size ``dx``: exact
+        face fractions (``cutcell.face_fractions``), distances at the samples, cell areas. The
+        closed sides of the domain are solid faces as in ``from_cells``. Velocities default to
+        zero (a resting solid); a moving solid gives the normal velocity of its motion on every
+        face it covers or cuts and at every sample inside it."""
+        u_frac, v_frac = cutcell.face_fractions(shapes, nx, ny, dx)
+        u_frac[0] = np.where(open_sides[0], u_frac[0], 1.0)
+        u_frac[-1] = np.where(open_sides[1], u_frac[-1], 1.0)
+        v_frac[:, 0] = np.where(open_sides[2], v_frac[:, 0], 1.0)
+        v_frac[:, -1] = np.where(open_sides[3], v_frac[:, -1], 1.0)
+        pu, pv, pc = cutcell.sample_points(nx, ny, dx)
+        u_dist = cutcell.union_distance(shapes, pu)
+        v_dist = cutcell.union_distance(shapes, pv)
+        c_dist = cutcell.union_distance(shapes, pc)
+        area = 1.0 - cutcell.cell_solid_fractions(shapes, nx, ny, dx)
+        u_solid = np.zeros(u_frac.shape) if u_solid is None else np.asarray(u_solid, float)
+        v_solid = np.zeros(v_frac.shape) if v_solid is None else np.asarray(v_solid, float)
+        return cls(np.ascontiguousarray(c_dist < 0.0), u_frac, v_frac, u_solid, v_solid,
+                   u_dist, v_dist, c_dist, area)
+
+
 def _faces_touching(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Interior x- and y-faces with a solid cell on either side."""
     return cells[1:] | cells[:-1], cells[:, 1:] | cells[:, :-1]
 
 
 def open_sides(spec: FluidSpec) -> np.ndarray:
-    """Which sides (left, right, bottom, top) are open, as the kernels index them."""
+    """Which sides (left, right, bottom, top) are open, as the kernels index them. An inflow
+    side is closed: its faces are solid faces moving at the inflow velocity."""
     return np.array([spec.walls.get(s, "solid") == "open" for s in SIDES])
 
 
+def inflow_velocities(spec: FluidSpec, u_solid: np.ndarray, v_solid: np.ndarray,
+                      factor: float = 1.0) -> None:
+    """Write the inflow profile (times ``factor``) into the normal velocity of the inflow side's
+    faces: u on the left/right side, v on the bottom/top, pointing into the domain; each face
+    gets the profile's mean over it, so the inflow rate is exact."""
+    inflow = spec.inflow
+    if inflow is None:
+        return
+    nx, ny = spec.resolution
+    dx = spec.dx
+    lx, ly = spec.domain
+    side = inflow.side
+    n = ny if side in ("left", "right") else nx
+    width = ly if side in ("left", "right") else lx
+    s = np.arange(n + 1) * dx
+    vel = factor * inflow.face_average(s[:-1], s[1:], width)
+    if side == "left":
+        u_solid[0] = vel
+    elif side == "right":
+        u_solid[-1] = -vel
+    elif side == "bottom":
+        v_solid[:, 0] = vel
+    else:
+        v_solid[:, -1] = -vel
+
+
 def static_boundary(spec: FluidSpec, centres: np.ndarray) -> SolidBoundary:
-    """The scene's obstacles at rest: a cell is solid when its centre (``centres``, (nx, ny, 2))
-    is strictly inside an obstacle (docs/fluid.md)."""
-    cells = np.zeros(centres.shape[:2], bool)
-    for obstacle in spec.obstacles:
-        cells |= obstacle.contains(centres)
-    return SolidBoundary.from_cells(cells, open_sides(spec))
+    """The scene's obstacles at rest (cut cells, ``SolidBoundary.from_shapes``), the closed sides,
+    and the inflow side moving at the inflow velocity. Without obstacles, the staircase boundary
+    of the closed sides (``from_cells`` of no cells), as before cut cells existed."""
+    nx, ny = centres.shape[:2]
+    u_solid = np.zeros((nx + 1, ny))
+    v_solid = np.zeros((nx, ny + 1))
+    inflow_velocities(spec, u_solid, v_solid)
+    if spec.obstacles:
+        return SolidBoundary.from_shapes(spec.obstacles, nx, ny, spec.dx, open_sides(spec),
+                                         u_solid, v_solid)
+    return SolidBoundary.from_cells(np.zeros((nx, ny), bool), open_sides(spec), u_solid, v_solid)
 
 
 def impose(u: np.ndarray, v: np.ndarray, ustate: np.ndarray, vstate: np.ndarray,
            bnd: SolidBoundary) -> None:
     """Set the solid faces of ``u``, ``v`` to the solid's velocity: the Neumann data of the
-    projection, which leaves these faces as they are (so they keep it after the step)."""
+    projection, which leaves these faces as they are (so they keep it after the step). Cut faces
+    (partly open) are fluid faces: the projection moves them, and their solid part enters the
+    divergence with the solid's velocity."""
     np.copyto(u, bnd.u_solid, where=ustate == SOLID)
     np.copyto(v, bnd.v_solid, where=vstate == SOLID)

@@ -102,6 +102,31 @@ def clip_path(solid, x0, y0, x1, y1, inv_dx):
     return x1, y1
 
 
+@njit(cache=True)
+def clip_path_dist(dist, x0, y0, x1, y1, inv_dx):
+    """Path clipping at cut-cell obstacles: as ``clip_path``, with the wall where the bilinear
+    interpolant of the solid's signed distance at cell centres (``dist``) is zero."""
+    if sample(dist, -0.5, -0.5, x0, y0, inv_dx)[0] < 0.0:
+        return x1, y1
+    length = math.hypot(x1 - x0, y1 - y0) * inv_dx
+    n = int(2.0 * length) + 1
+    t_good = 0.0
+    for k in range(1, n + 1):
+        t = k / n
+        if sample(dist, -0.5, -0.5, x0 + t * (x1 - x0), y0 + t * (y1 - y0), inv_dx)[0] < 0.0:
+            t_bad = t
+            for _ in range(12):
+                tm = 0.5 * (t_good + t_bad)
+                if sample(dist, -0.5, -0.5, x0 + tm * (x1 - x0), y0 + tm * (y1 - y0),
+                          inv_dx)[0] < 0.0:
+                    t_bad = tm
+                else:
+                    t_good = tm
+            return x0 + t_good * (x1 - x0), y0 + t_good * (y1 - y0)
+        t_good = t
+    return x1, y1
+
+
 @njit(cache=True, inline="always")
 def backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, has_solid):
     """Second-order (explicit midpoint) trace of the characteristic back over ``dt`` (forward when
@@ -119,13 +144,15 @@ def backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, has_solid):
 
 @njit(cache=True, parallel=True)
 def advect(q, qoffx, qoffy, tox, toy, out, lo, hi, active, fallback,
-           up, vp, dt, dx, lx, ly, solid, has_solid):
+           up, vp, dt, dx, lx, ly, solid, has_solid, dist, use_dist):
     """Semi-Lagrangian advection of ``q`` onto the grid points ``((i+tox)dx, (j+toy)dx)`` of
     ``out``; ``lo``/``hi`` receive the local extrema of the interpolation stencil. Points where
     ``active`` is false are not traced and take ``fallback`` (far from the surface nothing there
     can matter within one CFL-bounded step: the level set keeps its sign, air velocities are
-    rebuilt by extension)."""
+    rebuilt by extension). Traces are clipped at the solid cells (``solid``), or with cut cells
+    (``use_dist``) at the zero of the solid's interpolated signed distance ``dist``."""
     inv_dx = 1.0 / dx
+    clip_cells = has_solid and not use_dist
     nx, ny = out.shape
     for i in prange(nx):
         for j in range(ny):
@@ -136,7 +163,9 @@ def advect(q, qoffx, qoffy, tox, toy, out, lo, hi, active, fallback,
                 continue
             x = (i + tox) * dx
             y = (j + toy) * dx
-            xb, yb = backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, has_solid)
+            xb, yb = backtrace(x, y, up, vp, dt, inv_dx, lx, ly, solid, clip_cells)
+            if use_dist:
+                xb, yb = clip_path_dist(dist, x, y, xb, yb, inv_dx)
             val, a, b = sample(q, qoffx, qoffy, xb, yb, inv_dx)
             out[i, j] = val
             lo[i, j] = a
@@ -307,6 +336,38 @@ def fluid_area(phi, solid, dx, sub):
     return area
 
 
+@njit(cache=True)
+def fluid_area_weighted(phi, open_area, dx, sub):
+    """As ``fluid_area`` with cut cells: each cell's fluid fraction (from ``phi``) times its open
+    area fraction ``open_area`` (1 open, 0 solid)."""
+    nx, ny = phi.shape
+    inv_dx = 1.0 / dx
+    h = dx / sub
+    area = 0.0
+    cell = dx * dx
+    for i in range(nx):
+        for j in range(ny):
+            w = open_area[i, j]
+            if w <= 0.0:
+                continue
+            f = phi[i, j]
+            if f <= -0.75 * dx:
+                area += cell * w
+                continue
+            if f >= 0.75 * dx:
+                continue
+            acc = 0.0
+            for a in range(sub):
+                for b in range(sub):
+                    x = (i + (a + 0.5) / sub) * dx
+                    y = (j + (b + 0.5) / sub) * dx
+                    ps = sample(phi, -0.5, -0.5, x, y, inv_dx)[0]
+                    fr = 0.5 - ps / h
+                    acc += 0.0 if fr < 0.0 else (1.0 if fr > 1.0 else fr)
+            area += cell * w * acc / (sub * sub)
+    return area
+
+
 def empty_like_padded_u(u: np.ndarray) -> np.ndarray:
     return np.empty((u.shape[0], u.shape[1] + 2))
 
@@ -403,3 +464,56 @@ def redistance_sweep(phi, dx, band_cells, iterations):
         for j in range(ny):
             out[i, j] = -d[i, j] if phi[i, j] < 0.0 else d[i, j]
     return out
+
+
+@njit(cache=True, parallel=True)
+def convection(up, vp, ustate, vstate, dx, nu_out, nv_out):
+    """The convective term ``div(u u)`` of both components on the MAC grid, second-order central
+    differences in divergence form (Harlow and Welch 1965): the momentum flux through each side
+    of a face's control volume is the product of the two velocities averaged to that side.
+    ``up``, ``vp`` are the padded velocities (wall ghosts beyond the sides, so a no-slip wall has
+    zero flux). Faces that are not FLUID get 0. A FLUID face on a side of the domain (an open
+    outflow) gets the upwind convective outflow term ``u du/dn`` (zero when the flow comes
+    back in)."""
+    n0, n1 = ustate.shape          # nx+1, ny
+    inv = 1.0 / dx
+    for i in prange(n0):
+        for j in range(n1):
+            if ustate[i, j] != 1:
+                nu_out[i, j] = 0.0
+                continue
+            c = up[i, j + 1]
+            if i == 0 or i == n0 - 1:
+                inner = up[1, j + 1] if i == 0 else up[n0 - 2, j + 1]
+                out_vel = -c if i == 0 else c          # velocity out of the domain
+                nu_out[i, j] = (c * (c - inner) * inv * (1.0 if i == n0 - 1 else -1.0)
+                                if out_vel > 0.0 else 0.0)
+                continue
+            ue = 0.5 * (c + up[i + 1, j + 1])
+            uw = 0.5 * (up[i - 1, j + 1] + c)
+            un = 0.5 * (c + up[i, j + 2])
+            us = 0.5 * (up[i, j] + c)
+            # v at the top and bottom corners of the u control volume (vp has a ghost column)
+            vn = 0.5 * (vp[i, j + 1] + vp[i + 1, j + 1])
+            vs = 0.5 * (vp[i, j] + vp[i + 1, j])
+            nu_out[i, j] = ((ue * ue - uw * uw) + (un * vn - us * vs)) * inv
+    m0, m1 = vstate.shape          # nx, ny+1
+    for i in prange(m0):
+        for j in range(m1):
+            if vstate[i, j] != 1:
+                nv_out[i, j] = 0.0
+                continue
+            c = vp[i + 1, j]
+            if j == 0 or j == m1 - 1:
+                inner = vp[i + 1, 1] if j == 0 else vp[i + 1, m1 - 2]
+                out_vel = -c if j == 0 else c
+                nv_out[i, j] = (c * (c - inner) * inv * (1.0 if j == m1 - 1 else -1.0)
+                                if out_vel > 0.0 else 0.0)
+                continue
+            vn = 0.5 * (c + vp[i + 1, j + 1])
+            vs = 0.5 * (vp[i + 1, j - 1] + c)
+            ve = 0.5 * (c + vp[i + 2, j])
+            vw = 0.5 * (vp[i, j] + c)
+            ue = 0.5 * (up[i + 1, j] + up[i + 1, j + 1])
+            uw = 0.5 * (up[i, j] + up[i, j + 1])
+            nv_out[i, j] = ((ue * ve - uw * vw) + (vn * vn - vs * vs)) * inv

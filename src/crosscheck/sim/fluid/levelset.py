@@ -97,7 +97,12 @@ def front_position(phi, row, dx):
     return 0.0
 
 
-def fluid_area(phi: np.ndarray, solid: np.ndarray, dx: float) -> float:
+def fluid_area(phi: np.ndarray, solid: np.ndarray, dx: float,
+               open_area: np.ndarray | None = None) -> float:
+    """Area of ``{phi < 0}`` outside the solid: solid cells (``solid``) skipped, or with cut
+    cells each cell weighted by its open area fraction ``open_area``."""
+    if open_area is not None:
+        return float(K.fluid_area_weighted(phi, open_area, dx, 4))
     return float(K.fluid_area(phi, solid, dx, 4))
 
 

@@ -35,13 +35,14 @@ AIR, FLUID, SOLID = 0, 1, 2
 
 @njit(cache=True)
 def classify_faces(phi, u_frac, v_frac, ustate, vstate):
-    """Face states: SOLID where the solid boundary says so (obstacles and closed sides, see
-    ``boundary.py``), FLUID if next to a fluid cell, AIR otherwise (to be filled by velocity
-    extension). A face on an open side looks at its one cell."""
+    """Face states: SOLID where the solid boundary closes the face entirely (obstacles and closed
+    sides, see ``boundary.py``), FLUID if next to a fluid cell, AIR otherwise (to be filled by
+    velocity extension). A cut face (partly open) is FLUID: the projection moves it. A face on an
+    open side looks at its one cell."""
     nx, ny = phi.shape
     for i in range(nx + 1):
         for j in range(ny):
-            if u_frac[i, j] > 0.0:
+            if u_frac[i, j] >= 1.0:
                 ustate[i, j] = SOLID
             elif i == 0 or i == nx:
                 ustate[i, j] = FLUID if phi[0 if i == 0 else nx - 1, j] < 0.0 else AIR
@@ -51,7 +52,7 @@ def classify_faces(phi, u_frac, v_frac, ustate, vstate):
                 ustate[i, j] = AIR
     for i in range(nx):
         for j in range(ny + 1):
-            if v_frac[i, j] > 0.0:
+            if v_frac[i, j] >= 1.0:
                 vstate[i, j] = SOLID
             elif j == 0 or j == ny:
                 vstate[i, j] = FLUID if phi[i, 0 if j == 0 else ny - 1] < 0.0 else AIR
@@ -68,20 +69,26 @@ def _theta(pf, pa):
 
 
 @njit(cache=True)
-def build_system(phi, cells, u_frac, v_frac, u, v):
+def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
     """Assemble the compressed matrix and right-hand side. Returns
-    ``(index, diag, xm, xp, ym, yp, b, n_dirichlet)``.
+    ``(index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, n_dirichlet)``.
 
-    Unknowns are the fluid cells that are not solid (``cells``). A neighbour across a solid face
-    (``u_frac``/``v_frac``, closed sides included) drops out: that face keeps the velocity it
-    carries, the solid's, and enters ``b`` with it (the Neumann condition u . n = u_solid . n).
-    A non-solid face on a side of the domain is an open side."""
+    Unknowns are the fluid cells (``phi < 0``) with at least one face not entirely solid. Each
+    face enters with the weight ``W = 1 - solid fraction`` (its open fraction): the coefficient of
+    the neighbour across it is ``-W`` (``wxm`` ... ``wyp``, 0 where there is no neighbour unknown)
+    and the diagonal gets ``W`` (``W / theta`` towards air, ``2 W`` towards an open side). The
+    divergence counts the open part of a face with the fluid's velocity and the solid part with
+    the solid's, ``W u + (1 - W) u_solid``: the condition u . n = u_solid . n on the cut faces
+    (Batty, Bertails and Bridson 2007; Ng, Min and Gibou 2009). With faces 0 or 1 (staircase) this
+    is the seed's stencil: a solid face drops out and enters ``b`` with the velocity it carries,
+    the solid's. A non-solid face on a side of the domain is an open side."""
     nx, ny = phi.shape
     index = -np.ones((nx, ny), np.int64)
     n = 0
     for i in range(nx):
         for j in range(ny):
-            if phi[i, j] < 0.0 and not cells[i, j]:
+            if phi[i, j] < 0.0 and (u_frac[i, j] < 1.0 or u_frac[i + 1, j] < 1.0
+                                    or v_frac[i, j] < 1.0 or v_frac[i, j + 1] < 1.0):
                 index[i, j] = n
                 n += 1
     diag = np.zeros(n)
@@ -89,6 +96,10 @@ def build_system(phi, cells, u_frac, v_frac, u, v):
     xp = -np.ones(n, np.int64)
     ym = -np.ones(n, np.int64)
     yp = -np.ones(n, np.int64)
+    wxm = np.zeros(n)
+    wxp = np.zeros(n)
+    wym = np.zeros(n)
+    wyp = np.zeros(n)
     b = np.zeros(n)
     n_dir = 0
     for i in range(nx):
@@ -109,29 +120,43 @@ def build_system(phi, cells, u_frac, v_frac, u, v):
                     frac = v_frac[i, j + 1]
                 else:
                     frac = v_frac[i, j]
-                if frac > 0.0:
+                if frac >= 1.0:
                     continue  # solid face: Neumann, out of the stencil and the diagonal
+                w = 1.0 - frac
                 if a < 0 or a >= nx or c < 0 or c >= ny:
-                    d += 2.0  # open side: p = 0 on the boundary, half a cell away
+                    d += 2.0 * w  # open side: p = 0 on the boundary, half a cell away
                     n_dir += 1
                     continue
                 m = index[a, c]
                 if m >= 0:
-                    d += 1.0
+                    d += w
                     if s == 0:
                         xp[k] = m
+                        wxp[k] = w
                     elif s == 1:
                         xm[k] = m
+                        wxm[k] = w
                     elif s == 2:
                         yp[k] = m
+                        wyp[k] = w
                     else:
                         ym[k] = m
-                else:
-                    d += 1.0 / _theta(pf, phi[a, c])
+                        wym[k] = w
+                elif phi[a, c] >= 0.0:
+                    d += w / _theta(pf, phi[a, c])
                     n_dir += 1
+                # else: a fluid neighbour with every face solid is no unknown; the face between
+                # is then closed on the neighbour's side too, nothing flows through it
             diag[k] = d
-            b[k] = -(u[i + 1, j] - u[i, j] + v[i, j + 1] - v[i, j])
-    return index, diag, xm, xp, ym, yp, b, n_dir
+            f0 = u_frac[i, j]
+            f1 = u_frac[i + 1, j]
+            g0 = v_frac[i, j]
+            g1 = v_frac[i, j + 1]
+            b[k] = -(((1.0 - f1) * u[i + 1, j] + f1 * u_solid[i + 1, j])
+                     - ((1.0 - f0) * u[i, j] + f0 * u_solid[i, j])
+                     + ((1.0 - g1) * v[i, j + 1] + g1 * v_solid[i, j + 1])
+                     - ((1.0 - g0) * v[i, j] + g0 * v_solid[i, j]))
+    return index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, n_dir
 
 
 @njit(cache=True)
@@ -155,41 +180,44 @@ def _absmax(a):
 
 
 @njit(cache=True)
-def _matvec(diag, xm, xp, ym, yp, x, out):
+def _matvec(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, x, out):
     for k in range(diag.shape[0]):
         s = diag[k] * x[k]
         if xm[k] >= 0:
-            s -= x[xm[k]]
+            s -= wxm[k] * x[xm[k]]
         if xp[k] >= 0:
-            s -= x[xp[k]]
+            s -= wxp[k] * x[xp[k]]
         if ym[k] >= 0:
-            s -= x[ym[k]]
+            s -= wym[k] * x[ym[k]]
         if yp[k] >= 0:
-            s -= x[yp[k]]
+            s -= wyp[k] * x[yp[k]]
         out[k] = s
 
 
 @njit(cache=True)
-def mic0(diag, xm, xp, ym, yp, tau=0.97, sigma=0.25):
-    """Modified incomplete Cholesky MIC(0) of the 5-point matrix (Bridson, Fluid Simulation for
-    Computer Graphics, 2nd ed., sec. 5.3.3): tau = 0.97 blends towards the row-sum-preserving
-    modification, sigma = 0.25 guards against tiny pivots."""
+def mic0(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, tau=0.97, sigma=0.25):
+    """Modified incomplete Cholesky MIC(0) of the 5-point matrix with off-diagonal entries
+    ``-w`` (Bridson, Fluid Simulation for Computer Graphics, 2nd ed., sec. 5.3.3): tau = 0.97
+    blends towards the row-sum-preserving modification, sigma = 0.25 guards against tiny pivots.
+    With unit weights the operations are those of the unweighted factor, bit for bit."""
     n = diag.shape[0]
     prec = np.empty(n)
     for k in range(n):
         e = diag[k]
         a = xm[k]
         if a >= 0:
+            w = wxm[k]
             pa = prec[a] * prec[a]
-            e -= pa
+            e -= w * w * pa
             if yp[a] >= 0:
-                e -= tau * pa
+                e -= tau * (w * wyp[a] * pa)
         c = ym[k]
         if c >= 0:
+            w = wym[k]
             pc = prec[c] * prec[c]
-            e -= pc
+            e -= w * w * pc
             if xp[c] >= 0:
-                e -= tau * pc
+                e -= tau * (w * wxp[c] * pc)
         if e < sigma * diag[k]:
             e = diag[k]
         prec[k] = 1.0 / np.sqrt(e)
@@ -197,58 +225,58 @@ def mic0(diag, xm, xp, ym, yp, tau=0.97, sigma=0.25):
 
 
 @njit(cache=True)
-def _apply_mic(prec, xm, xp, ym, yp, r, q, z):
+def _apply_mic(prec, xm, xp, ym, yp, wxm, wxp, wym, wyp, r, q, z):
     n = r.shape[0]
     for k in range(n):
         t = r[k]
         a = xm[k]
         if a >= 0:
-            t += prec[a] * q[a]
+            t += wxm[k] * prec[a] * q[a]
         c = ym[k]
         if c >= 0:
-            t += prec[c] * q[c]
+            t += wym[k] * prec[c] * q[c]
         q[k] = t * prec[k]
     for k in range(n - 1, -1, -1):
         t = q[k]
         a = xp[k]
         if a >= 0:
-            t += prec[k] * z[a]
+            t += wxp[k] * prec[k] * z[a]
         c = yp[k]
         if c >= 0:
-            t += prec[k] * z[c]
+            t += wyp[k] * prec[k] * z[c]
         z[k] = t * prec[k]
 
 
 @njit(cache=True)
-def pcg(diag, xm, xp, ym, yp, b, x, tol, max_iter):
+def pcg(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, x, tol, max_iter):
     """MIC(0)-preconditioned conjugate gradient, warm-started from ``x`` (overwritten). Stops when
-    the largest residual (a velocity, m/s after scaling) is below ``tol``. Returns the iteration
-    count (-1 if it did not converge)."""
+    the largest residual is below ``tol``. Returns the iteration count (-1 if it did not
+    converge)."""
     n = b.shape[0]
     if n == 0:
         return 0
     r = np.empty(n)
-    _matvec(diag, xm, xp, ym, yp, x, r)
+    _matvec(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, x, r)
     for k in range(n):
         r[k] = b[k] - r[k]
     if _absmax(r) <= tol:
         return 0
-    prec = mic0(diag, xm, xp, ym, yp)
+    prec = mic0(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
     q = np.empty(n)
     z = np.empty(n)
-    _apply_mic(prec, xm, xp, ym, yp, r, q, z)
+    _apply_mic(prec, xm, xp, ym, yp, wxm, wxp, wym, wyp, r, q, z)
     s = z.copy()
     sigma = _dot(r, z)
     As = np.empty(n)
     for it in range(max_iter):
-        _matvec(diag, xm, xp, ym, yp, s, As)
+        _matvec(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, s, As)
         alpha = sigma / _dot(s, As)
         for k in range(n):
             x[k] += alpha * s[k]
             r[k] -= alpha * As[k]
         if _absmax(r) <= tol:
             return it + 1
-        _apply_mic(prec, xm, xp, ym, yp, r, q, z)
+        _apply_mic(prec, xm, xp, ym, yp, wxm, wxp, wym, wyp, r, q, z)
         sigma_new = _dot(r, z)
         beta = sigma_new / sigma
         sigma = sigma_new
@@ -329,8 +357,8 @@ def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
     (``boundary.impose``). ``p_guess`` (scaled pressure on the grid) warm-starts the solve and
     receives the new scaled pressure. Returns (iterations, fluid cell count, largest |divergence|
     residual before the solve)."""
-    index, diag, xm, xp, ym, yp, b, n_dir = build_system(phi, bnd.cells, bnd.u_frac, bnd.v_frac,
-                                                         u, v)
+    (index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b,
+     n_dir) = build_system(phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
     n = diag.shape[0]
     if n == 0:
         p_guess[:] = 0.0
@@ -344,7 +372,7 @@ def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
         diag[0] += 1.0
     x = gather(index, p_guess, n)
     bmax = float(np.max(np.abs(b)))
-    its = pcg(diag, xm, xp, ym, yp, b, x, max(tol * bmax, 1e-13), max_iter)
+    its = pcg(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, x, max(tol * bmax, 1e-13), max_iter)
     scatter(index, x, p_guess)
     apply_pressure(p_guess, phi, u, v, ustate, vstate)
     return its, n, bmax

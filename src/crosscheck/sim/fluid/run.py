@@ -79,6 +79,8 @@ class FluidRun:
     def _step_size(self) -> float:
         """The next step, or FluidStop when the state or the step forbids one."""
         st, spec, t = self.st, self.spec, self.time
+        if st.unsupported:
+            raise FluidStop(t, st.unsupported)
         umax = st.max_speed_faces()
         if not math.isfinite(umax) or not np.isfinite(st.phi).all():
             raise FluidStop(t, "non-finite velocity or level set")

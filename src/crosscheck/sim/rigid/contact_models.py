@@ -76,5 +76,16 @@ def get_contact_model(name: str) -> ContactModel:
                        f"{list(CONTACT_KERNELS)}") from None
 
 
-# The implementations register themselves on import (as integrators.py binds its kernels).
+def _bind_force_and_event_models() -> None:
+    """penalty (force level, penalty.py) and impulse_lcp (event-driven, impulse_lcp.py)."""
+    from crosscheck.sim.rigid import impulse_lcp, penalty
+
+    bind_contact_model("penalty", penalty.open_penalty, penalty.PARAMETERS)
+    bind_contact_model("impulse_lcp", impulse_lcp.open_impulse_lcp, impulse_lcp.PARAMETERS)
+
+
+# The implementations register themselves on import (as integrators.py binds its kernels), in
+# crosscheck.names' order: the velocity-level models, then penalty and impulse_lcp.
 from crosscheck.sim.rigid import velocity_models  # noqa: E402, F401
+
+_bind_force_and_event_models()

@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
+from crosscheck.sim.rigid.contact_forces import contact_wrench2d
 
 
 @njit(**JIT)
@@ -159,6 +160,8 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle,
     if gravity is not None:
         apply_gravity(bodies, gravity, F)
     accumulate(springs, drag, loads, control, x, angle, v, w, F, T)
+    if contacts is not None:  # a force-level contact model's forces (contact_forces.py)
+        contact_wrench2d(bodies, contacts, x, angle, P, L, v, w, F, T)
 
 
 @njit(**JIT)

@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
+from crosscheck.sim.rigid.contact_forces import contact_wrench3d
 from crosscheck.sim.rigid.math3d import quat_rate, quat_to_rotation
 
 
@@ -232,7 +233,8 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
     and loads. Every ``is not None`` test is resolved when
     numba compiles the specialisation for the scene's effects: an undeclared effect, or
     ``control=None``, leaves no code in the step (R is only stored when springs need it).
-    ``contacts`` is the contact model's slot, always None today: no code reads it.
+    ``contacts`` is a force-level contact model's argument (contact_forces.py) or None, which
+    leaves no contact code in the step.
     """
     for i in range(q.shape[0]):
         (r00, r01, r02, r10, r11, r12, r20, r21, r22, vx, vy, vz, wx, wy,
@@ -253,6 +255,8 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
         F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2] = body_wrench(
             drag, control, i, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz)
     accumulate(springs, None, loads, None, x, R, v, w, F, T)
+    if contacts is not None:  # a force-level contact model's forces (contact_forces.py)
+        contact_wrench3d(bodies, contacts, x, q, P, L, v, w, F, T)
 
 
 @njit(**JIT)
