@@ -112,6 +112,8 @@ position = [0.0, 0.0, 0.1]
     ("[engine_options.inhouse.sequential_impulse]\nwarm_starting = 1",
      "engine_options.inhouse.sequential_impulse.warm_starting"),
     ("[engine_options.inhouse]\nsoft_step = 3", "engine_options.inhouse.soft_step"),
+    ("[engine_options.inhouse.penalty]\ndamping_law = 3",
+     "engine_options.inhouse.penalty.damping_law"),
 ])
 def test_unknown_or_bad_options_are_case_errors_naming_the_field(options, field):
     scene = load_case_text(_BOX_ON_GROUND + options)

@@ -97,7 +97,10 @@ def _model_parameters(source, field: str, model, value) -> dict[str, Any]:
         elif isinstance(default, int):
             ok = isinstance(given, int) and not isinstance(given, bool)
             kind = "an integer"
-        else:
+        elif isinstance(default, str):
+            ok = isinstance(given, str)
+            kind = "a string"
+        else:  # a float, or None (a number the model otherwise derives)
             ok = isinstance(given, (int, float)) and not isinstance(given, bool)
             kind = "a number"
             given = float(given) if ok else given
