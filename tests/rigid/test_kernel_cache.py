@@ -8,6 +8,18 @@ from __future__ import annotations
 import os
 
 from crosscheck.sim import _jit
+from crosscheck.sim.collide import (
+    broadphase,
+    clip3d,
+    convex3d,
+    detect,
+    gjk,
+    manifold,
+    narrow2d,
+    narrow3d,
+    polytope3d,
+    pose,
+)
 from crosscheck.sim.rigid import (
     explicit2d,
     explicit3d,
@@ -20,7 +32,8 @@ from crosscheck.sim.rigid import (
 )
 
 KERNEL_MODULES = (math3d, forces3d, forces2d, explicit3d, explicit2d, splitting3d, splitting2d,
-                  implicit)
+                  implicit, pose, manifold, narrow3d, narrow2d, clip3d, polytope3d, gjk, convex3d,
+                  broadphase, detect)
 
 
 def _kernels(module):

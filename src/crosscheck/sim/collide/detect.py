@@ -23,8 +23,9 @@ import numpy as np
 from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
-from crosscheck.sim.collide.broadphase import box_reaches_plane, brute_force_pairs
+from crosscheck.sim.collide.broadphase import box_reaches_plane, broad_phase
 from crosscheck.sim.collide.contacts import Contacts
+from crosscheck.sim.collide.convex3d import CAP_POINTS, convex_convex
 from crosscheck.sim.collide.geometry import (
     BOX,
     CAPSULE,
@@ -35,16 +36,24 @@ from crosscheck.sim.collide.geometry import (
     Geometry2D,
     Geometry3D,
 )
+from crosscheck.sim.collide.gjk import (
+    EPA_MAX_FACES,
+    EPA_MAX_VERTS,
+    GjkScratch,
+)
 from crosscheck.sim.collide.manifold import MAX_CANDIDATES, Manifold
 from crosscheck.sim.collide.narrow2d import circle_polygon, circles, line_collider, polygon_polygon
 from crosscheck.sim.collide.narrow3d import (
+    capsule_capsule,
+    plane_box,
     plane_collider,
+    plane_sphere,
     sphere_box,
     sphere_capsule,
     sphere_cylinder,
     sphere_sphere,
 )
-from crosscheck.sim.collide.polytope3d import PolytopeScratch, polytope_polytope
+from crosscheck.sim.collide.polytope3d import new_polytope_scratch, polytope_polytope
 from crosscheck.sim.collide.pose import (
     bounding_boxes2d,
     bounding_boxes3d,
@@ -56,6 +65,9 @@ from crosscheck.sim.collide.pose import (
 # (three rows of its own) and a box resting on boxes has 4-point manifolds above and below.
 ROWS_PER_BODY_3D = 16
 ROWS_PER_BODY_2D = 8
+# Broad-phase pairs per collider the first try holds (a dense pile of spheres has about 12; more
+# costs a second broad-phase pass, never a loss)
+PAIRS_PER_COLLIDER = 16
 
 
 def contact_capacity(geometry: Geometry3D | Geometry2D) -> int:
@@ -70,68 +82,88 @@ def new_contacts(geometry: Geometry3D | Geometry2D, capacity: int | None = None)
 
 
 # -- rows -----------------------------------------------------------------------------------------
+# The loops below read every array through a local name taken once per detection, never through a
+# NamedTuple (geometry, contacts, manifold) inside the loop: numba counts a reference on every
+# field access, which cost more than the narrow phase itself (broadphase.py's note).
 @njit(**INLINE)
-def emit(geom, contacts, man, n, c_first, c_second, b_first, b_second, flip, pair_key,
-         cls_first, cls_second, needed):
-    """Append the manifold's n points as rows (a = b_first, b = b_second, the manifold's normal
-    negated when ``flip``); returns the new ``needed``."""
-    cap = contacts.a.shape[0]
-    d = contacts.normal.shape[1]
-    s = -1.0 if flip else 1.0
+def emit(n, m_normal, m_point, m_depth, m_feature, a, b, key, mu, e, rolling, torsional,
+         out_a, out_b, out_normal, out_point, out_depth, out_mu, out_e, out_rolling,
+         out_torsional, out_feature, needed):
+    """Append the manifold's n points as rows (body a, body b or -1, the pair's values and
+    feature key ``key``); returns the new ``needed``. Rows past the capacity are counted only."""
+    cap = out_a.shape[0]
+    d = out_normal.shape[1]
     for k in range(n):
         row = needed
         needed += 1
         if row >= cap:
             continue
-        contacts.a[row] = b_first
-        contacts.b[row] = b_second
+        out_a[row] = a
+        out_b[row] = b
         for r in range(d):
-            contacts.normal[row, r] = s * man.normal[r]
-            contacts.point[row, r] = man.point[k, r]
-        contacts.depth[row] = man.depth[k]
-        contacts.friction[row] = geom.pair_friction[cls_first, cls_second]
-        contacts.restitution[row] = geom.pair_restitution[cls_first, cls_second]
-        contacts.rolling_friction[row] = geom.pair_rolling_friction[cls_first, cls_second]
-        contacts.torsional_friction[row] = geom.pair_torsional_friction[cls_first, cls_second]
-        contacts.feature[row] = (pair_key << 32) | (man.feature[k] & 0xFFFFFFFF)
+            out_normal[row, r] = m_normal[r]
+            out_point[row, r] = m_point[k, r]
+        out_depth[row] = m_depth[k]
+        out_mu[row] = mu
+        out_e[row] = e
+        out_rolling[row] = rolling
+        out_torsional[row] = torsional
+        out_feature[row] = (key << 32) | (m_feature[k] & 0xFFFFFFFF)
     return needed
 
 
 @njit(**INLINE)
-def row_order(geom, i, j):
+def row_order(body, i, j):
     """(first, second): the collider whose body is row a (a body; the lower body index of two)."""
-    bi, bj = geom.body[i], geom.body[j]
+    bi, bj = body[i], body[j]
     if bi < 0 or (bj >= 0 and bj < bi):
         return j, i
     return i, j
 
 
 # -- 3D -------------------------------------------------------------------------------------------
+# Pairs in kind order (sphere < box < capsule < cylinder < hull): each routine takes its two
+# shapes in that order, so a pair given the other way round is computed swapped and its normal
+# negated. The closed forms are inlined and take arrays only; the polytope and convex routines
+# are calls (they take the geometry: passing a NamedTuple into inlined code copies it, a reference
+# count per field, on every pair).
 @njit(**INLINE)
-def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch):
-    """Manifold of colliders (ca, cb), normal from ca to cb; the routines take their shapes in
-    kind order, so a pair given the other way round is computed swapped and its normal negated."""
-    ka, kb = geom.kind[ca], geom.kind[cb]
+def closed_form_pair3d(ka, kb, size, wpos, wrot, ca, cb, margin, man):
+    """Manifold of (ca, cb) with ka <= kb by a closed form; -1 when the pair has none."""
+    if ka == SPHERE:
+        r = size[ca, 0]
+        if kb == SPHERE:
+            return sphere_sphere(wpos, ca, r, cb, size[cb, 0], margin, man)
+        if kb == BOX:
+            return sphere_box(wpos, wrot, ca, r, cb, size[cb, 0], size[cb, 1], size[cb, 2],
+                              margin, man)
+        if kb == CAPSULE:
+            return sphere_capsule(wpos, wrot, ca, r, cb, size[cb, 0], size[cb, 1], margin, man)
+        if kb == CYLINDER:
+            return sphere_cylinder(wpos, wrot, ca, r, cb, size[cb, 0], size[cb, 1], margin,
+                                   man)
+        return -1
+    if ka == CAPSULE and kb == CAPSULE:
+        return capsule_capsule(wpos, wrot, ca, size[ca, 0], size[ca, 1], cb, size[cb, 0],
+                               size[cb, 1], margin, man)
+    return -1
+
+
+@njit(**JIT)
+def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch, gs, lam):
+    """Manifold of colliders (ca, cb), normal from ca to cb (outside the hot loop: tests)."""
+    kind = geom.kind
+    ka, kb = kind[ca], kind[cb]
     swapped = ka > kb
     if swapped:
         ca, cb = cb, ca
         ka, kb = kb, ka
-    n = 0
-    if ka == SPHERE:
-        r = geom.size[ca, 0]
-        if kb == SPHERE:
-            n = sphere_sphere(wpos, ca, r, cb, geom.size[cb, 0], margin, man)
-        elif kb == BOX:
-            n = sphere_box(wpos, wrot, ca, r, cb, geom.size[cb, 0], geom.size[cb, 1],
-                           geom.size[cb, 2], margin, man)
-        elif kb == CAPSULE:
-            n = sphere_capsule(wpos, wrot, ca, r, cb, geom.size[cb, 0], geom.size[cb, 1],
-                               margin, man)
-        elif kb == CYLINDER:
-            n = sphere_cylinder(wpos, wrot, ca, r, cb, geom.size[cb, 0], geom.size[cb, 1],
-                                margin, man)
-    elif (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
-        n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch)
+    n = closed_form_pair3d(ka, kb, geom.size, wpos, wrot, ca, cb, margin, man)
+    if n < 0:
+        if (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
+            n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch)
+        else:
+            n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
     if swapped and n > 0:
         for r in range(3):
             man.normal[r] = -man.normal[r]
@@ -142,7 +174,6 @@ def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch):
 def detect3d(geom, x, q, contacts):
     """Fill ``contacts`` from the state (x (N, 3), q (N, 4)); returns the rows needed."""
     c = geom.kind.shape[0]
-    n_planes = geom.plane_offset.shape[0]
     margin = geom.margin
     wpos = np.empty((c, 3))
     wrot = np.empty((c, 3, 3))
@@ -152,37 +183,93 @@ def detect3d(geom, x, q, contacts):
     bounding_boxes3d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    m = 2 * geom.max_face_verts + 4
-    scratch = PolytopeScratch(np.zeros((geom.max_poly_verts, 3)),
-                              np.zeros((geom.max_poly_verts, 3)), np.zeros((m, 3)),
-                              np.zeros((m, 3)), np.zeros(m, np.int64), np.zeros(m, np.int64))
-    pairs, n_pairs = brute_force_pairs(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
-    n_keys = c + n_planes
-    needed = 0
-    for p in range(n_pairs):
-        first, second = row_order(geom, pairs[p, 0], pairs[p, 1])
-        n = collide_pair3d(geom, wpos, wrot, first, second, margin, man, scratch)
-        if n > 0:
-            needed = emit(geom, contacts, man, n, first, second, geom.body[first],
-                          geom.body[second], False, first * n_keys + second,
-                          geom.material_class[first], geom.material_class[second], needed)
-    for g in range(n_planes):
-        for b in range(geom.n_bodies):
-            if not geom.pair_collide[geom.material_class[b], geom.plane_class[g]]:
-                continue
-            if not box_reaches_plane(geom, lo, hi, b, g, margin):
-                continue
-            n = plane_collider(geom, wpos, wrot, b, g, margin, man)
-            if n > 0:
-                needed = emit(geom, contacts, man, n, b, c + g, b, -1, False, b * n_keys + c + g,
-                              geom.material_class[b], geom.plane_class[g], needed)
+    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces, geom.max_poly_edges,
+                                   2 * max(geom.max_face_verts, CAP_POINTS) + 4)
+    gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
+                    np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
+                    np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),
+                    np.zeros((3 * EPA_MAX_FACES, 2), np.int64))
+    lam = np.zeros(4)
+    pairs, n_pairs = broad_phase(geom, lo, hi, np.empty((PAIRS_PER_COLLIDER * c + 16, 2),
+                                                         np.int64))
+    needed = _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi, scratch,
+                                 gs, lam)
     contacts.needed[0] = needed
     contacts.count[0] = min(needed, contacts.a.shape[0])
     return needed
 
 
+@njit(**JIT)
+def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi, scratch, gs,
+                        lam):
+    """The narrow phase over the broad phase's pairs, then every body against every plane; rows
+    appended in that order. Returns the rows needed. (_pairs_and_planes2d is the same loop with
+    the 2D routines.)"""
+    body, cls = geom.body, geom.material_class
+    friction, restitution = geom.pair_friction, geom.pair_restitution
+    rolling, torsional = geom.pair_rolling_friction, geom.pair_torsional_friction
+    collide, plane_class = geom.pair_collide, geom.plane_class
+    plane_normal, plane_offset = geom.plane_normal, geom.plane_offset
+    m_normal, m_point, m_depth, m_feature = man.normal, man.point, man.depth, man.feature
+    out_a, out_b, out_normal, out_point = contacts.a, contacts.b, contacts.normal, contacts.point
+    out_depth, out_mu, out_e = contacts.depth, contacts.friction, contacts.restitution
+    out_rolling, out_torsional = contacts.rolling_friction, contacts.torsional_friction
+    out_feature = contacts.feature
+    margin = geom.margin
+    c = body.shape[0]
+    n_planes = plane_class.shape[0]
+    n_keys = c + n_planes
+    needed = 0
+    kind, size = geom.kind, geom.size
+    for p in range(n_pairs):
+        first, second = row_order(body, pairs[p, 0], pairs[p, 1])
+        ca, cb = first, second
+        ka, kb = kind[ca], kind[cb]
+        swapped = ka > kb
+        if swapped:
+            ca, cb = cb, ca
+            ka, kb = kb, ka
+        n = closed_form_pair3d(ka, kb, size, wpos, wrot, ca, cb, margin, man)
+        if n < 0:
+            if (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
+                n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch)
+            else:
+                n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
+        if swapped and n > 0:
+            for r in range(3):
+                m_normal[r] = -m_normal[r]
+        if n > 0:
+            k1, k2 = cls[first], cls[second]
+            needed = emit(n, m_normal, m_point, m_depth, m_feature, body[first], body[second],
+                          first * n_keys + second, friction[k1, k2], restitution[k1, k2],
+                          rolling[k1, k2], torsional[k1, k2], out_a, out_b, out_normal,
+                          out_point, out_depth, out_mu, out_e, out_rolling, out_torsional,
+                          out_feature, needed)
+    for g in range(n_planes):
+        kg = plane_class[g]
+        for b in range(geom.n_bodies):
+            kb = cls[b]
+            if not collide[kb, kg]:
+                continue
+            if not box_reaches_plane(plane_normal, plane_offset, lo, hi, b, g, margin):
+                continue
+            if kind[b] == SPHERE:
+                n = plane_sphere(plane_normal, plane_offset, wpos, size, b, g, margin, man)
+            elif kind[b] == BOX:
+                n = plane_box(plane_normal, plane_offset, wpos, wrot, size, b, g, margin, man)
+            else:
+                n = plane_collider(geom, wpos, wrot, b, g, margin, man)
+            if n > 0:
+                needed = emit(n, m_normal, m_point, m_depth, m_feature, b, -1,
+                              b * n_keys + c + g, friction[kb, kg], restitution[kb, kg],
+                              rolling[kb, kg], torsional[kb, kg], out_a, out_b, out_normal,
+                              out_point, out_depth, out_mu, out_e, out_rolling, out_torsional,
+                              out_feature, needed)
+    return needed
+
+
 # -- 2D -------------------------------------------------------------------------------------------
-@njit(**INLINE)
+@njit(**JIT)
 def collide_pair2d(geom, wpos, wrot, ca, cb, margin, man):
     ka, kb = geom.kind[ca], geom.kind[cb]
     swapped = ka > kb
@@ -206,7 +293,6 @@ def collide_pair2d(geom, wpos, wrot, ca, cb, margin, man):
 def detect2d(geom, x, angle, contacts):
     """Fill ``contacts`` from the state (x (N, 2), angle (N,)); returns the rows needed."""
     c = geom.kind.shape[0]
-    n_planes = geom.plane_offset.shape[0]
     margin = geom.margin
     wpos = np.empty((c, 2))
     wrot = np.empty((c, 2))
@@ -216,26 +302,68 @@ def detect2d(geom, x, angle, contacts):
     bounding_boxes2d(geom, wpos, wrot, 0.5 * margin, lo, hi)
     man = Manifold(np.zeros(2), np.zeros((MAX_CANDIDATES, 2)), np.zeros(MAX_CANDIDATES),
                    np.zeros(MAX_CANDIDATES, np.int64))
-    pairs, n_pairs = brute_force_pairs(geom, lo, hi, np.empty((4 * c + 16, 2), np.int64))
+    pairs, n_pairs = broad_phase(geom, lo, hi, np.empty((PAIRS_PER_COLLIDER * c + 16, 2),
+                                                         np.int64))
+    needed = _pairs_and_planes2d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi)
+    contacts.needed[0] = needed
+    contacts.count[0] = min(needed, contacts.a.shape[0])
+    return needed
+
+
+@njit(**JIT)
+def _pairs_and_planes2d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi):
+    """_pairs_and_planes3d with the 2D routines."""
+    body, cls = geom.body, geom.material_class
+    friction, restitution = geom.pair_friction, geom.pair_restitution
+    rolling, torsional = geom.pair_rolling_friction, geom.pair_torsional_friction
+    collide, plane_class = geom.pair_collide, geom.plane_class
+    plane_normal, plane_offset = geom.plane_normal, geom.plane_offset
+    m_normal, m_point, m_depth, m_feature = man.normal, man.point, man.depth, man.feature
+    out_a, out_b, out_normal, out_point = contacts.a, contacts.b, contacts.normal, contacts.point
+    out_depth, out_mu, out_e = contacts.depth, contacts.friction, contacts.restitution
+    out_rolling, out_torsional = contacts.rolling_friction, contacts.torsional_friction
+    out_feature = contacts.feature
+    margin = geom.margin
+    c = body.shape[0]
+    n_planes = plane_class.shape[0]
     n_keys = c + n_planes
     needed = 0
+    kind, radius = geom.kind, geom.radius
     for p in range(n_pairs):
-        first, second = row_order(geom, pairs[p, 0], pairs[p, 1])
-        n = collide_pair2d(geom, wpos, wrot, first, second, margin, man)
+        first, second = row_order(body, pairs[p, 0], pairs[p, 1])
+        ca, cb = first, second
+        if kind[ca] > kind[cb]:
+            ca, cb = cb, ca
+        if kind[ca] == CIRCLE and kind[cb] == CIRCLE:
+            n = circles(wpos[ca, 0], wpos[ca, 1], radius[ca], wpos[cb, 0], wpos[cb, 1],
+                        radius[cb], margin, man, 0, 0, 0.0, 1.0)
+        elif kind[ca] == CIRCLE:
+            n = circle_polygon(geom, wpos, wrot, ca, cb, margin, man)
+        else:
+            n = polygon_polygon(geom, wpos, wrot, ca, cb, margin, man)
+        if ca != first and n > 0:
+            m_normal[0] = -m_normal[0]
+            m_normal[1] = -m_normal[1]
         if n > 0:
-            needed = emit(geom, contacts, man, n, first, second, geom.body[first],
-                          geom.body[second], False, first * n_keys + second,
-                          geom.material_class[first], geom.material_class[second], needed)
+            k1, k2 = cls[first], cls[second]
+            needed = emit(n, m_normal, m_point, m_depth, m_feature, body[first], body[second],
+                          first * n_keys + second, friction[k1, k2], restitution[k1, k2],
+                          rolling[k1, k2], torsional[k1, k2], out_a, out_b, out_normal,
+                          out_point, out_depth, out_mu, out_e, out_rolling, out_torsional,
+                          out_feature, needed)
     for g in range(n_planes):
+        kg = plane_class[g]
         for b in range(geom.n_bodies):
-            if not geom.pair_collide[geom.material_class[b], geom.plane_class[g]]:
+            kb = cls[b]
+            if not collide[kb, kg]:
                 continue
-            if not box_reaches_plane(geom, lo, hi, b, g, margin):
+            if not box_reaches_plane(plane_normal, plane_offset, lo, hi, b, g, margin):
                 continue
             n = line_collider(geom, wpos, wrot, b, g, margin, man)
             if n > 0:
-                needed = emit(geom, contacts, man, n, b, c + g, b, -1, False, b * n_keys + c + g,
-                              geom.material_class[b], geom.plane_class[g], needed)
-    contacts.needed[0] = needed
-    contacts.count[0] = min(needed, contacts.a.shape[0])
+                needed = emit(n, m_normal, m_point, m_depth, m_feature, b, -1,
+                              b * n_keys + c + g, friction[kb, kg], restitution[kb, kg],
+                              rolling[kb, kg], torsional[kb, kg], out_a, out_b, out_normal,
+                              out_point, out_depth, out_mu, out_e, out_rolling, out_torsional,
+                              out_feature, needed)
     return needed

@@ -1,4 +1,5 @@
-"""The scene's colliders compiled once into arrays the detection kernels read (and never write).
+"""The scene's colliders compiled once into arrays the detection kernels read (and, but for the
+broad phase's sort cache, never write).
 
 One collider per body (collider ``i`` is body ``i``: its shape in the body frame, placed relative
 to the centre of mass), then one per static (a fixed world pose); the ground plane apart (a
@@ -41,6 +42,10 @@ KIND_NAMES_2D = ("circle", "polygon")
 
 # The default speculative distance: contacts up to 5 mm apart are reported (negative depth).
 DEFAULT_MARGIN = 5e-3
+# Broad phases (broadphase.py): a uniform grid (the default: linear in the bodies for any pile)
+# or sweep and prune along one axis (fine for spread-out scenes, O(N^(5/3)) in a compact pile).
+GRID, SWEEP = 0, 1
+BROADPHASES = {"grid": GRID, "sweep": SWEEP}
 
 
 class Geometry3D(NamedTuple):
@@ -53,6 +58,8 @@ class Geometry3D(NamedTuple):
     body: np.ndarray  # (C,) int64: body index, -1 for a static
     size: np.ndarray  # (C, 3): sphere (r, 0, 0), box half extents, capsule and cylinder
     #                   (r, half length along z, 0), hull (0, 0, 0)
+    bound_radius: np.ndarray  # (C,) radius of a sphere about the shape frame's origin holding
+    #                           the shape (a length scale for tolerances)
     frame_pos: np.ndarray  # (C, 3): bodies: the shape frame's origin relative to the centre of
     #                        mass, body frame (= -com); statics: world position
     frame_rot: np.ndarray  # (C, 3, 3): bodies: identity; statics: world rotation
@@ -83,6 +90,19 @@ class Geometry3D(NamedTuple):
     pair_collide: np.ndarray  # (K, K) bool
     max_poly_verts: int  # the largest polytope's vertex count (scratch sizes)
     max_face_verts: int  # the largest face's vertex count
+    max_poly_faces: int  # the largest polytope's face count
+    max_poly_edges: int  # the largest polytope's edge count
+    # The broad phase (broadphase.py): GRID or SWEEP, and its fields. The caches (the last call's
+    # sort orders) are the one thing detection writes here: they change the cost of the next
+    # sort, never a result.
+    broadphase: int
+    sweep_order: np.ndarray  # (C,) int64, SWEEP's order of the last call
+    sweep_axis: np.ndarray  # (1,) int64, its axis (-1: none yet)
+    grid_cell: float  # GRID's cell size (m): the largest box of a grid member fits one cell
+    grid_member: np.ndarray  # (C,) bool: in the grid; the others (large statics and bodies)
+    grid_big: np.ndarray  # (L,) int64 are tried against every collider
+    grid_order: np.ndarray  # (M,) int64, the members in the last call's cell order
+    grid_state: np.ndarray  # (1,) int64: 0 until grid_order has been sorted once
 
     @property
     def n_colliders(self) -> int:
@@ -116,6 +136,15 @@ class Geometry2D(NamedTuple):
     pair_torsional_friction: np.ndarray  # (K, K)
     pair_collide: np.ndarray  # (K, K) bool
     max_poly_verts: int
+    bound_radius: np.ndarray  # (C,) as Geometry3D's
+    broadphase: int  # the broad phase and its fields: see Geometry3D
+    sweep_order: np.ndarray
+    sweep_axis: np.ndarray
+    grid_cell: float
+    grid_member: np.ndarray
+    grid_big: np.ndarray
+    grid_order: np.ndarray
+    grid_state: np.ndarray
 
     @property
     def n_colliders(self) -> int:
@@ -167,14 +196,16 @@ def pair_table(scene: Scene) -> PairTable:
 
 
 # -- compiling ------------------------------------------------------------------------------------
-def compile_geometry(scene: Scene, margin: float = DEFAULT_MARGIN) -> Geometry3D | Geometry2D:
-    """The scene's bodies, statics and ground as collision arrays (see the module docstring)."""
+def compile_geometry(scene: Scene, margin: float = DEFAULT_MARGIN,
+                     broadphase: str = "grid") -> Geometry3D | Geometry2D:
+    """The scene's bodies, statics and ground as collision arrays (see the module docstring);
+    ``broadphase``: "grid" or "sweep" (broadphase.py)."""
     if not margin >= 0.0:
         raise ValueError(f"contact margin must be >= 0, got {margin!r}")
     if scene.dimension == 3:
-        return _compile3d(scene, float(margin))
+        return _compile3d(scene, float(margin), broadphase)
     if scene.dimension == 2:
-        return _compile2d(scene, float(margin))
+        return _compile2d(scene, float(margin), broadphase)
     raise ValueError(f"dimension must be 2 or 3, got {scene.dimension}")
 
 
@@ -186,15 +217,17 @@ def _placements(scene: Scene):
         yield s.shape, np.asarray(s.position, dtype=float), np.asarray(s.orientation, float)
 
 
-def _compile3d(scene: Scene, margin: float) -> Geometry3D:
+def _compile3d(scene: Scene, margin: float, broadphase: str) -> Geometry3D:
     from crosscheck.rotations import quat_to_matrix
 
     table = pair_table(scene)
     polys: list[Polytope] = []
     poly_index: dict[tuple, int] = {}
-    kind, size, fpos, frot, poly = [], [], [], [], []
+    kind, size, fpos, frot, poly, bound = [], [], [], [], [], []
     for shape, pos, orientation in _placements(scene):
         p = -1
+        lo, hi = shape.bounding_box()
+        bound.append(float(np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi)))))
         if isinstance(shape, Sphere):
             k, s = SPHERE, (shape.radius, 0.0, 0.0)
         elif isinstance(shape, Box):
@@ -230,14 +263,18 @@ def _compile3d(scene: Scene, margin: float) -> Geometry3D:
         n_bodies=n, margin=margin,
         kind=np.array(kind, dtype=np.int64).reshape(c),
         body=np.array([*range(n), *([-1] * (c - n))], dtype=np.int64).reshape(c),
-        size=_f64(size, (c, 3)), frame_pos=_f64(fpos, (c, 3)), frame_rot=_f64(frot, (c, 3, 3)),
+        size=_f64(size, (c, 3)), bound_radius=_f64(bound, (c,)), frame_pos=_f64(fpos, (c, 3)),
+        frame_rot=_f64(frot, (c, 3, 3)),
         material_class=table.collider_class, polytope=np.array(poly, dtype=np.int64).reshape(c),
         **arrays, plane_normal=planes[0], plane_offset=planes[1], plane_class=table.plane_class,
         pair_friction=table.friction, pair_restitution=table.restitution,
         pair_rolling_friction=table.rolling_friction,
         pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
         max_poly_verts=max([len(p.vertices) for p in polys], default=1),
-        max_face_verts=max([len(f) for p in polys for f in p.faces], default=1))
+        max_face_verts=max([len(f) for p in polys for f in p.faces], default=1),
+        max_poly_faces=max([len(p.faces) for p in polys], default=1),
+        max_poly_edges=max([len(p.edges) for p in polys], default=1),
+        **_broadphase_fields(bound, margin, broadphase))
 
 
 def _polytope_arrays(polys: list[Polytope]) -> dict[str, np.ndarray]:
@@ -269,13 +306,15 @@ def _planes(scene: Scene, d: int) -> tuple[np.ndarray, np.ndarray]:
     return _f64(n / norm, (1, d)), _f64([scene.ground.offset / norm], (1,))
 
 
-def _compile2d(scene: Scene, margin: float) -> Geometry2D:
+def _compile2d(scene: Scene, margin: float, broadphase: str) -> Geometry2D:
     table = pair_table(scene)
     polys: list[np.ndarray] = []
     poly_index: dict[tuple, int] = {}
-    kind, radius, fpos, fang, poly = [], [], [], [], []
+    kind, radius, fpos, fang, poly, bound = [], [], [], [], [], []
     for shape, pos, orientation in _placements(scene):
         p = -1
+        lo, hi = shape.bounding_box()
+        bound.append(float(np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi)))))
         if isinstance(shape, Circle):
             k, r = CIRCLE, shape.radius
         elif isinstance(shape, Box | Polygon):
@@ -319,7 +358,31 @@ def _compile2d(scene: Scene, margin: float) -> Geometry2D:
         pair_friction=table.friction, pair_restitution=table.restitution,
         pair_rolling_friction=table.rolling_friction,
         pair_torsional_friction=table.torsional_friction, pair_collide=table.collide,
-        max_poly_verts=max([len(v) for v in polys], default=1))
+        max_poly_verts=max([len(v) for v in polys], default=1), bound_radius=_f64(bound, (c,)),
+        **_broadphase_fields(bound, margin, broadphase))
+
+
+# A collider whose bounding radius exceeds this many times the median stays out of the grid (a
+# wall, a long ramp): it would set a cell size that puts the whole pile in a few cells.
+LARGE_FACTOR = 4.0
+
+
+def _broadphase_fields(bound: list[float], margin: float, broadphase: str) -> dict:
+    """The broad phase's method and its fields: the grid's cell fits the largest regular
+    collider's box (twice its bounding radius, grown by the margin)."""
+    if broadphase not in BROADPHASES:
+        raise ValueError(f"broad phase {broadphase!r}: one of {sorted(BROADPHASES)}")
+    r = np.asarray(bound, dtype=float).reshape(-1)
+    c = len(r)
+    limit = LARGE_FACTOR * float(np.median(r)) if c else 0.0
+    member = r <= limit
+    cell = 2.0 * float(r[member].max()) + margin if member.any() else 1.0
+    return dict(broadphase=BROADPHASES[broadphase],
+                sweep_order=np.arange(c, dtype=np.int64), sweep_axis=np.full(1, -1, np.int64),
+                grid_cell=max(cell, 1e-9), grid_member=member,
+                grid_big=np.flatnonzero(~member).astype(np.int64),
+                grid_order=np.flatnonzero(member).astype(np.int64),
+                grid_state=np.zeros(1, np.int64))
 
 
 def _f64(a, shape) -> np.ndarray:

@@ -64,7 +64,7 @@ def circles(ax, ay, ra, bx, by, rb, margin, man, k, feature, fx, fy):
     return k + 1
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def circle_polygon(geom, wpos, wrot, ca, cb, margin, man):
     """Circle A against polygon B: the edge of B the centre is farthest outside of, then the
     centre's Voronoi region of that edge (the edge itself or one of its end vertices)."""
@@ -128,7 +128,7 @@ FACE_BIAS_ABS = 1e-6
 FACE_BIAS_REL = 0.02
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def polygon_polygon(geom, wpos, wrot, ca, cb, margin, man):
     """Separating axes of both polygons; the incident edge (the other polygon's edge most
     anti-parallel to the reference edge) clipped to the reference edge's extent; up to two points

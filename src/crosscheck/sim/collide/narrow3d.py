@@ -19,6 +19,9 @@ from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.collide.geometry import CAPSULE, CYLINDER, SPHERE
 from crosscheck.sim.collide.manifold import MAX_CANDIDATES, put_point, reduce_to_four, set_normal
 
+# Two capsule axes are parallel (a line contact) when the sine of their angle is below this.
+SIN_PARALLEL = 0.02
+
 
 # -- small vector helpers -------------------------------------------------------------------------
 @njit(**INLINE)
@@ -75,6 +78,42 @@ def closest_on_segment(px, py, pz, ax, ay, az, bx, by, bz):
         t = ((px - ax) * ex + (py - ay) * ey + (pz - az) * ez) / ee
         t = min(1.0, max(0.0, t))
     return ax + t * ex, ay + t * ey, az + t * ez, t
+
+
+@njit(**INLINE)
+def segment_segment(p0x, p0y, p0z, p1x, p1y, p1z, q0x, q0y, q0z, q1x, q1y, q1z):
+    """Closest points of segments p0-p1 and q0-q1 (Ericson, Real-Time Collision Detection 5.1.9,
+    written here from the formulas): the line parameters, clamped, re-projected once."""
+    d1x, d1y, d1z = p1x - p0x, p1y - p0y, p1z - p0z
+    d2x, d2y, d2z = q1x - q0x, q1y - q0y, q1z - q0z
+    rx, ry, rz = p0x - q0x, p0y - q0y, p0z - q0z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    s = 0.0
+    t = 0.0
+    if a <= 0.0 and e <= 0.0:
+        pass
+    elif a <= 0.0:
+        t = min(1.0, max(0.0, f / e))
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= 0.0:
+            s = min(1.0, max(0.0, -c / a))
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            if denom > 0.0:
+                s = min(1.0, max(0.0, (b * f - c * e) / denom))
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = min(1.0, max(0.0, -c / a))
+            elif t > 1.0:
+                t = 1.0
+                s = min(1.0, max(0.0, (b - c) / a))
+    return (p0x + s * d1x, p0y + s * d1y, p0z + s * d1z,
+            q0x + t * d2x, q0y + t * d2y, q0z + t * d2z)
 
 
 # -- the two-sphere core: every "point with a radius" pair ends here ----------------------------
@@ -201,6 +240,56 @@ def sphere_cylinder(wpos, wrot, ca, r, cb, rc, hc, margin, man):
                                    ox, oy, oz, gap_c, margin, man)
 
 
+@njit(**INLINE)
+def capsule_capsule(wpos, wrot, ca, ra, ha, cb, rb, hb, margin, man):
+    """Capsules A and B: the closest points of their axis segments (one point); when the axes
+    are parallel (within SIN_PARALLEL) and overlap along their length, the two ends of the overlap
+    instead, so a capsule lying along another gets a line contact."""
+    a0x, a0y, a0z, a1x, a1y, a1z = segment_of(wpos, wrot, ca, ha)
+    b0x, b0y, b0z, b1x, b1y, b1z = segment_of(wpos, wrot, cb, hb)
+    px, py, pz, qx, qy, qz = segment_segment(a0x, a0y, a0z, a1x, a1y, a1z,
+                                             b0x, b0y, b0z, b1x, b1y, b1z)
+    # fallback normal (axes crossing): A's x axis
+    k = spheres(px, py, pz, ra, qx, qy, qz, rb, margin, man, 0, 0,
+                wrot[ca, 0, 0], wrot[ca, 1, 0], wrot[ca, 2, 0])
+    if k == 0:
+        return 0
+    ax, ay, az = wrot[ca, 0, 2], wrot[ca, 1, 2], wrot[ca, 2, 2]
+    bx, by, bz = wrot[cb, 0, 2], wrot[cb, 1, 2], wrot[cb, 2, 2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    if cx * cx + cy * cy + cz * cz > SIN_PARALLEL * SIN_PARALLEL or ha <= 0.0 or hb <= 0.0:
+        return k
+    # B's ends projected on A's axis (parameter in [-ha, ha]), clamped to both segments
+    ta0 = (b0x - wpos[ca, 0]) * ax + (b0y - wpos[ca, 1]) * ay + (b0z - wpos[ca, 2]) * az
+    ta1 = (b1x - wpos[ca, 0]) * ax + (b1y - wpos[ca, 1]) * ay + (b1z - wpos[ca, 2]) * az
+    lo = max(-ha, min(ta0, ta1))
+    hi = min(ha, max(ta0, ta1))
+    if hi - lo <= 1e-9 * (ha + hb):
+        return k
+    nx, ny, nz = man.normal[0], man.normal[1], man.normal[2]
+    for e in range(2):
+        t = lo if e == 0 else hi
+        sx, sy, sz = wpos[ca, 0] + t * ax, wpos[ca, 1] + t * ay, wpos[ca, 2] + t * az
+        ux, uy, uz, _ = closest_on_segment(sx, sy, sz, b0x, b0y, b0z, b1x, b1y, b1z)
+        # the gap between the two surfaces along the manifold's normal
+        gap = nx * (ux - sx) + ny * (uy - sy) + nz * (uz - sz) - ra - rb
+        h = 0.5 * (ra - rb)
+        put_point(man, e, 0.5 * (sx + ux) + h * nx, 0.5 * (sy + uy) + h * ny,
+                  0.5 * (sz + uz) + h * nz, -gap, 1 + e)
+    return 2 if man.depth[0] >= -margin and man.depth[1] >= -margin else _deeper_only(man)
+
+
+@njit(**INLINE)
+def _deeper_only(man):
+    """Of a two-point manifold with one point beyond the margin, keep the other."""
+    if man.depth[0] < man.depth[1]:
+        for r in range(3):
+            man.point[0, r] = man.point[1, r]
+        man.depth[0] = man.depth[1]
+        man.feature[0] = man.feature[1]
+    return 1
+
+
 # -- the ground plane -----------------------------------------------------------------------------
 @njit(**INLINE)
 def plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, feature):
@@ -212,6 +301,35 @@ def plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, feature):
     put_point(man, k, px - 0.5 * gap * nx, py - 0.5 * gap * ny, pz - 0.5 * gap * nz, -gap,
               feature)
     return k + 1
+
+
+@njit(**INLINE)
+def plane_sphere(plane_normal, plane_offset, wpos, size, c, g, margin, man):
+    """Sphere collider c against plane g: its lowest point (the plane collider's sphere case, for
+    the detection loop, with arrays only)."""
+    nx, ny, nz = plane_normal[g, 0], plane_normal[g, 1], plane_normal[g, 2]
+    r = size[c, 0]
+    set_normal(man, -nx, -ny, -nz)
+    return plane_point(man, 0, nx, ny, nz, plane_offset[g], wpos[c, 0] - r * nx,
+                       wpos[c, 1] - r * ny, wpos[c, 2] - r * nz, margin, 0)
+
+
+@njit(**INLINE)
+def plane_box(plane_normal, plane_offset, wpos, wrot, size, c, g, margin, man):
+    """Box collider c against plane g: its corners within the margin, the four spanning the
+    largest area kept (plane_collider's box case, for the detection loop, with arrays only;
+    corner k has the signs of the bits of k, as the box's polytope numbers them)."""
+    nx, ny, nz = plane_normal[g, 0], plane_normal[g, 1], plane_normal[g, 2]
+    offset = plane_offset[g]
+    set_normal(man, -nx, -ny, -nz)
+    k = 0
+    for v in range(8):
+        sx = size[c, 0] if v & 4 else -size[c, 0]
+        sy = size[c, 1] if v & 2 else -size[c, 1]
+        sz = size[c, 2] if v & 1 else -size[c, 2]
+        px, py, pz = to_world(wpos, wrot, c, sx, sy, sz)
+        k = plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, v)
+    return reduce_to_four(man, k)
 
 
 @njit(**JIT)
@@ -240,9 +358,10 @@ def plane_collider(geom, wpos, wrot, c, g, margin, man):
     else:  # box, hull: every vertex within the margin
         p = geom.polytope[c]
         v0 = geom.poly_vert_start[p]
+        vertices = geom.vertices
         for v in range(geom.poly_vert_count[p]):
-            px, py, pz = to_world(wpos, wrot, c, geom.vertices[v0 + v, 0],
-                                  geom.vertices[v0 + v, 1], geom.vertices[v0 + v, 2])
+            px, py, pz = to_world(wpos, wrot, c, vertices[v0 + v, 0], vertices[v0 + v, 1],
+                                  vertices[v0 + v, 2])
             if k < MAX_CANDIDATES:
                 k = plane_point(man, k, nx, ny, nz, offset, px, py, pz, margin, v)
             else:
