@@ -155,8 +155,8 @@ CONTACT_MODELS: dict[str, tuple[ContactModelInfo, ...]] = {
                          "projected Gauss-Seidel on velocities with warm starting, restitution "
                          "above a velocity threshold, split-impulse position correction"),
         ContactModelInfo("penalty", FORCE_LEVEL, _EXPLICIT,
-                         "Hunt-Crossley spring-damper normal force and regularised Coulomb "
-                         "friction in every force evaluation"),
+                         "Hunt-Crossley spring-damper normal force and Coulomb friction "
+                         "(elastic-plastic anchor, or regularised) in every force evaluation"),
         ContactModelInfo("impulse_lcp", EVENT_DRIVEN, _EXPLICIT,
                          "Baraff: impulses with restitution at the time of impact (bisection), "
                          "resting forces from the LCP with Coulomb friction"),
