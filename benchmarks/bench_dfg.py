@@ -9,8 +9,8 @@ cylinder (the case file has 10), to ``--duration`` (default the case's 6 s, 30 c
 times), and measures the drag and lift coefficients and the front-back pressure difference with
 the case's own metrics (``compare/fluid_metrics.py``). The observed order of each quantity is
 ``log(e_coarse / e_fine) / log(h_coarse / h_fine)`` between successive grids, e the difference
-from the FEATFLOW reference value; where three grids halve the spacing (10, 20, 40) the
-Richardson order ``log2((f_10 - f_20) / (f_20 - f_40))`` needs no reference at all.
+from the FEATFLOW reference value; the Richardson order of the three finest grids (the p that
+makes ``f0 + C h^p`` pass through their three values) needs no reference at all.
 
 2D-2 builds the same channel with U_max = 1.5 (Re = 100), runs ``--duration`` (default 10 s)
 sampling every 5 ms, and measures the maximum drag and lift coefficients and the Strouhal
@@ -101,22 +101,43 @@ def observed_orders(runs: list[dict], case: str) -> list[dict]:
     return out
 
 
+def _order(f1: float, f2: float, f3: float, h1: float, h2: float, h3: float) -> float | None:
+    """The order p with (f1 - f2) / (f2 - f3) = (h1^p - h2^p) / (h2^p - h3^p) (three grids of
+    any spacings h1 > h2 > h3), by bisection on p in (0.05, 8); None when the differences do not
+    shrink monotonically."""
+    if (f2 - f3) == 0 or (f1 - f2) / (f2 - f3) <= 1.0:
+        return None
+    target = (f1 - f2) / (f2 - f3)
+
+    def g(p: float) -> float:
+        return (h1**p - h2**p) / (h2**p - h3**p) - target
+
+    lo, hi = 0.05, 8.0
+    if g(lo) * g(hi) > 0:
+        return None
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if g(lo) * g(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 def richardson(runs: list[dict], case: str) -> dict:
-    """Order and extrapolated value from grids h, h/2, h/4 (no reference needed)."""
-    by = {r["cells_per_diameter"]: r for r in runs}
-    for c in sorted(by):
-        if 2 * c in by and 4 * c in by:
-            f1, f2, f4 = by[c], by[2 * c], by[4 * c]
-            res = {"grids": [c, 2 * c, 4 * c]}
-            for q in QUANTITIES[case]:
-                a, b, d = (r["metrics"].get(q) for r in (f1, f2, f4))
-                if None in (a, b, d) or (b - d) == 0 or (a - b) / (b - d) <= 0:
-                    res[q] = None
-                    continue
-                p = math.log2((a - b) / (b - d))
-                res[q] = {"order": p, "extrapolated": d + (d - b) / (2 ** p - 1)}
-            return res
-    return {}
+    """Order and extrapolated value from the three finest grids (no reference needed):
+    ``f(h) = f0 + C h^p`` through the three points."""
+    runs = sorted(runs, key=lambda r: r["cells_per_diameter"])[-3:]
+    if len(runs) < 3:
+        return {}
+    h = [1.0 / r["cells_per_diameter"] for r in runs]
+    res = {"grids": [r["cells_per_diameter"] for r in runs]}
+    for q in QUANTITIES[case]:
+        f = [r["metrics"].get(q) for r in runs]
+        p = None if None in f else _order(*f, *h)
+        if p is None:
+            res[q] = None
+            continue
+        c = (f[1] - f[2]) / (h[1] ** p - h[2] ** p)
+        res[q] = {"order": p, "extrapolated": f[2] - c * h[2] ** p}
+    return res
 
 
 def write_markdown(data: dict, path: Path) -> None:
@@ -165,9 +186,11 @@ def write_markdown(data: dict, path: Path) -> None:
             lines.append("")
         rich = richardson(runs, case)
         if rich:
-            lines += [f"Richardson (grids {rich['grids']}, no reference used): " + "; ".join(
+            lines += [f"Richardson (the three finest grids, {rich['grids']} cells; no reference "
+                      "used): " + "; ".join(
                 f"{q}: order {rich[q]['order']:.2f}, extrapolated {rich[q]['extrapolated']:.6g}"
-                if rich.get(q) else f"{q}: not monotone" for q in qs) + ".", ""]
+                if rich.get(q) else f"{q}: no f0 + C h^p fits (its differences do not shrink "
+                "as a power of h)" for q in qs) + ".", ""]
         if case == "2d2":
             lines += ["Periods measured: " + ", ".join(
                 f"{r['cells_per_diameter']}: {r['metrics'].get('periods', 0):.0f}"
@@ -186,12 +209,17 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--integrator", default="central")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--report", action="store_true",
+                    help="only rewrite dfg.md from dfg.json (no runs)")
     args = ap.parse_args()
     cells = args.cells or ([10, 20, 30, 40] if args.case == "2d1" else [10, 20])
     args.out.mkdir(parents=True, exist_ok=True)
     jpath = args.out / "dfg.json"
     data = json.loads(jpath.read_text()) if jpath.exists() else {"runs": []}
     data["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cpus"
+    if args.report:
+        write_markdown(data, args.out / "dfg.md")
+        return
     for c in cells:
         if c % 10:
             raise SystemExit(f"--cells {c}: the DFG grid needs a multiple of 10 cells across D")
