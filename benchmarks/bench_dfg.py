@@ -196,7 +196,8 @@ def write_markdown(data: dict, path: Path) -> None:
                 f"{r['cells_per_diameter']}: {r['metrics'].get('periods', 0):.0f}"
                 for r in runs) + " (lift zero crossings in the second half of the run).", ""]
     lines += ["How: the in-house `central` scheme (second-order central convection, "
-              "Adams-Bashforth 2, Crank-Nicolson viscosity with ghost-fluid no-slip walls on the cut cells, the "
+              "Adams-Bashforth 2, Crank-Nicolson viscosity with ghost-fluid no-slip walls on "
+              "the cut cells, the "
               "incremental pressure projection weighted by open face fractions), CFL 0.5. Forces "
               "by the momentum balance over the smooth window 0.025-0.1 m from the cylinder "
               "(docs/fluid.md, \"Forces on a body\"); the pressure difference by least-squares "
