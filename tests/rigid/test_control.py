@@ -12,10 +12,8 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-import tempfile
 
 import numpy as np
 import pytest
@@ -139,6 +137,7 @@ from crosscheck.scene.loader import load_case_text
 from crosscheck.sim.rigid import Control, compile_model, state_from_scene
 from crosscheck.sim.rigid import forces3d
 import numba
+from crosscheck.sim._jit import fresh_llvm_ir
 scene = load_case_text(sys.argv[1])
 model = compile_model(scene).without("springs", "drag", "loads")
 n = model.n_bodies
@@ -147,7 +146,7 @@ for label, control in (("none", None), ("control", Control.zeros(model))):
     s = state_from_scene(model, scene)
     R, v, w, F, T = np.empty((n, 3, 3)), *(np.empty((n, 3)) for _ in range(4))
     forces3d.evaluate(*model.kernel_args(), control, None, *s.arrays(), R, v, w, F, T)
-    irs = [ir for sig, ir in forces3d.evaluate.inspect_llvm().items()
+    irs = [ir for sig, ir in fresh_llvm_ir(forces3d.evaluate).items()
            if str(sig[5]) == str(numba.typeof(control))]
     out[label] = {"lines": irs[0].count("\n"), "Control": "Control" in irs[0]}
 print(json.dumps(out))
@@ -155,13 +154,10 @@ print(json.dumps(out))
 
 
 def test_control_free_force_pass_holds_no_control_code():
-    # Compiled fresh (an empty numba cache: a cached function has no IR to inspect); only the
-    # force pass, which every integrator calls once per stage and where the control is read.
-    case = _CASE_3D
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        res = subprocess.run([sys.executable, "-c", IR_SCRIPT, case], capture_output=True,
-                             text=True, env=env, timeout=600)
+    # The force pass compiled afresh (sim/_jit.fresh_llvm_ir: a cached function has no IR to
+    # inspect), which every integrator calls once per stage and where the control is read.
+    res = subprocess.run([sys.executable, "-c", IR_SCRIPT, _CASE_3D], capture_output=True,
+                         text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     out = json.loads(res.stdout.strip().splitlines()[-1])
     assert out["none"]["Control"] is False

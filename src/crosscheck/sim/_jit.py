@@ -95,3 +95,25 @@ def _register_locators() -> bool:
 
 
 LOCATORS_REGISTERED = _register_locators()
+
+
+def fresh_llvm_ir(dispatcher) -> dict:
+    """The LLVM IR of every signature ``dispatcher`` has been compiled for, from a fresh,
+    uncached compile of the same Python function with the same options.
+
+    A function loaded from numba's disk cache keeps only machine code, so its IR cannot be
+    inspected; compiling a whole process fresh (an empty ``NUMBA_CACHE_DIR``) recompiles every
+    kernel it calls too, minutes for the contact kernels. Here only the inspected function is
+    recompiled: the compiled functions it calls are the same dispatchers, from the cache, and
+    appear in its IR by their (mangled) names; the functions it inlines are inlined again, as in
+    the cached code. Tests use this to check which code a kernel holds (docs/inhouse.md,
+    "Control and contacts in the step")."""
+    import numba
+
+    options = {k: v for k, v in dispatcher.targetoptions.items() if k != "cache"}
+    fresh = numba.njit(**options)(dispatcher.py_func)
+    out = {}
+    for sig in dispatcher.signatures:
+        fresh.compile(sig)
+        out[sig] = fresh.inspect_llvm(sig)
+    return out
