@@ -51,6 +51,34 @@ def gravitational_potential_energy(scene: Scene, traj: Trajectory) -> np.ndarray
     return -np.einsum("n,tnd,d->t", _masses(scene), traj.com, scene.effects.gravity)
 
 
+def body_volumes(scene: Scene) -> np.ndarray:
+    """(N,) volume of each body's shape, m^3 (3D; the mass properties at unit density)."""
+    from crosscheck.scene.massprops import shape_mass_properties
+
+    return np.array([shape_mass_properties(b.shape, 1.0).mass for b in scene.bodies])
+
+
+def buoyancy_forces(scene: Scene) -> np.ndarray:
+    """(N, d) buoyancy of a medium on each body, -rho_f V_i g (zero without a medium with
+    density, or without gravity). It acts at the centre of buoyancy, the shape's centroid."""
+    medium = scene.effects.medium
+    n, d = len(scene.bodies), scene.dimension
+    if medium is None or medium.density == 0.0 or scene.effects.gravity is None:
+        return np.zeros((n, d))
+    g = np.asarray(scene.effects.gravity, float)
+    return -medium.density * body_volumes(scene)[:, None] * g[None, :]
+
+
+def buoyancy_potential_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
+    """sum_i rho_f V_i g . x_i: the potential of the buoyancy, a constant force per body, taken
+    at the centre of mass (exact when the centre of buoyancy is the centre of mass, as for every
+    body with its shape's centroid as centre of mass; the MuJoCo adapter refuses the others)."""
+    forces = buoyancy_forces(scene)
+    if not np.any(forces):
+        return np.zeros(len(traj.t))
+    return -np.einsum("tnd,nd->t", traj.com, forces)
+
+
 def attachment_points_world(scene: Scene, traj: Trajectory, body: int, local: np.ndarray
                             ) -> np.ndarray:
     """(T, d) world position of a body-frame point: x_com + R (p - com_body)."""
@@ -94,7 +122,7 @@ def load_potential_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
 
 def potential_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
     return (gravitational_potential_energy(scene, traj) + spring_potential_energy(scene, traj)
-            + load_potential_energy(scene, traj))
+            + load_potential_energy(scene, traj) + buoyancy_potential_energy(scene, traj))
 
 
 def total_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
@@ -152,8 +180,9 @@ def com_velocity(scene: Scene, traj: Trajectory) -> np.ndarray:
 def translational_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
     """The centre of mass's share of the energy: 1/2 M |v_c|^2 - M g . c - F_tot . c.
 
-    Uniform gravity and the sum of the constant loads act on the centre of mass c alone; this
-    part changes under a Galilean boost or a shift of the origin, the rest does not.
+    Uniform gravity and the sum of the constant loads (and of a medium's buoyancies) act on the
+    centre of mass c alone; this part changes under a Galilean boost or a shift of the origin,
+    the rest does not.
     """
     m = _masses(scene)
     c = system_com(scene, traj)
@@ -164,6 +193,7 @@ def translational_energy(scene: Scene, traj: Trajectory) -> np.ndarray:
         force += m.sum() * np.asarray(scene.effects.gravity, float)
     for load in scene.effects.loads:
         force += np.asarray(load.force, float)
+    force += buoyancy_forces(scene).sum(axis=0)
     return energy - c @ force
 
 
@@ -180,8 +210,10 @@ def exchangeable_energy(scene: Scene, first: Trajectory) -> float:
     first sample: T(0) + V_springs(0) + sum_i |F_i| (|v_i(0)| D + |F_i| D^2 / (2 m_i))
     + sum_i |tau_i| (|w_i(0)| D + |tau_i| D^2 / (2 I_min,i)), F_i = m_i g + the constant loads,
     tau_i the constant torques, D the duration (the work of the constant forces over the longest
-    free-flight distance). The run driver's blow-up cut and the comparer's blow-up test both
-    measure against it."""
+    free-flight distance). A medium's buoyancy counts among the constant forces (a light body
+    rises under m g - rho_f V g, which can be many times its weight); its drag only removes
+    energy. The run driver's blow-up cut and the comparer's blow-up test both measure against
+    it."""
     total = float(kinetic_energy(scene, first)[0] + spring_potential_energy(scene, first)[0])
     duration = scene.run.duration
     d = scene.dimension
@@ -192,6 +224,7 @@ def exchangeable_energy(scene: Scene, first: Trajectory) -> float:
     for load in scene.effects.loads:
         forces[load.body] += np.asarray(load.force, float)
         torques[load.body] += np.asarray(load.torque, float).reshape(-1)
+    forces += buoyancy_forces(scene)
     for i, body in enumerate(scene.bodies):
         f = float(np.linalg.norm(forces[i]))
         total += f * (float(np.linalg.norm(body.velocity)) * duration

@@ -537,10 +537,10 @@ class Impact:
 
 
 def normal_acceleration(scene: Scene, body: int) -> float | None:
-    """``n . (g + F/m)``: the constant normal acceleration of free flight, or None when a drag or
-    a spring acts on the body (free flight is then not uniformly accelerated)."""
+    """``n . (g + F/m)``: the constant normal acceleration of free flight, or None when a drag, a
+    medium or a spring acts on the body (free flight is then not uniformly accelerated)."""
     fx = scene.effects
-    if any(body in d.bodies for d in fx.drag) or any(
+    if fx.medium is not None or any(body in d.bodies for d in fx.drag) or any(
             body in (s.body_a, s.body_b) for s in fx.springs):
         return None
     n, _ = _unit_normal(scene)

@@ -116,7 +116,7 @@ def internal_energy_decouples(scene: Scene) -> bool:
     and is what ``energy_drift`` measures."""
     fx = scene.effects
     return not (any(s.body_b is None for s in fx.springs) or fx.drag or fx.fluid
-                or (fx.contact and scene.ground is not None))
+                or fx.medium is not None or (fx.contact and scene.ground is not None))
 
 
 def _has_full_state(traj: Trajectory) -> bool:
@@ -238,6 +238,8 @@ def energy_not_conserved(scene: Scene) -> str | None:
         return "fluid scene"
     if fx.drag:
         return "the scene has drag"
+    if fx.medium is not None:
+        return "the medium's drag dissipates energy"
     if any(s.damping > 0 for s in fx.springs):
         return "a spring is damped"
     if scene.dimension == 3 and any(np.any(np.asarray(ld.torque) != 0) for ld in fx.loads):
@@ -260,6 +262,8 @@ def linear_momentum_directions(scene: Scene) -> tuple[np.ndarray | None, str | N
         return None, "fluid scene"
     if any(dr.linear > 0 for dr in fx.drag):
         return None, "the scene has linear drag (an external force)"
+    if fx.medium is not None:
+        return None, "the medium's drag is an external force"
     if any(s.body_b is None for s in fx.springs):
         return None, "a spring is anchored to the world (an external force)"
     if _fixed_contact(scene):
@@ -292,6 +296,8 @@ def angular_momentum_not_conserved(scene: Scene) -> str | None:
         return "fluid scene"
     if fx.drag:
         return "the scene has drag"
+    if fx.medium is not None:
+        return "the medium's drag exerts torques"
     if any(s.body_b is None for s in fx.springs):
         return "a spring is anchored to the world (an external torque)"
     if _fixed_contact(scene):

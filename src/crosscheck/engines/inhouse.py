@@ -115,6 +115,11 @@ def _model_parameters(source, field: str, model, value) -> dict[str, Any]:
 
 class InhouseEngine(EngineBase):
     name = "inhouse"
+    effect_reasons = {
+        **EngineBase.effect_reasons,
+        "medium": "the in-house rigid engine has no stateless medium model; the in-house body in "
+                  "a resolved fluid is the coupled [fluid] case (2D, docs/fluid.md)",
+    }
 
     def capabilities(self) -> Capabilities:
         rigid = rigid_names("inhouse")  # rk4 first: the default

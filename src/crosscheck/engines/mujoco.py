@@ -101,7 +101,13 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
     "stepping": (("compiled", "nstep"), "compiled"),
+    # [effects] medium: which of MuJoCo's two fluid models acts (docs/engines.md, "Medium").
+    "fluid_model": (("inertia_box", "ellipsoid"), "inertia_box"),
 }
+# The ellipsoid model's five coefficients (blunt drag, slender drag, angular drag, Kutta lift,
+# Magnus lift): MuJoCo's defaults unless [engine_options.mujoco] fluidcoef gives five numbers.
+FLUIDCOEF_DEFAULT = (0.5, 0.25, 1.5, 1.0, 1.0)
+FLUID_OPTIONS = ("fluid_model", "fluidcoef")
 
 # A run fails at the first sample at or after which MuJoCo's own check fired (mj_checkPos,
 # mj_checkVel, mj_checkAcc: NaN, Inf or a value beyond mjMAXVAL = 1e10).
@@ -164,16 +170,56 @@ def engine_options(scene: Scene) -> dict[str, Any]:
     given = dict(scene.engine_options.get("mujoco", {}))
     out = {}
     for key, value in given.items():
+        if key in FLUID_OPTIONS and scene.effects.medium is None:
+            raise CaseError(scene.source, f"engine_options.mujoco.{key}",
+                            "no fluid option on a scene without [effects] medium (it would "
+                            "change nothing)", value)
+        if key == "fluidcoef":
+            ok = (isinstance(value, list) and len(value) == 5
+                  and all(isinstance(x, int | float) and not isinstance(x, bool)
+                          and math.isfinite(x) and x >= 0 for x in value))
+            if not ok:
+                raise CaseError(scene.source, "engine_options.mujoco.fluidcoef",
+                                "5 non-negative numbers: blunt drag, slender drag, angular drag, "
+                                "Kutta lift, Magnus lift (MuJoCo's geom fluidcoef)", value)
+            if given.get("fluid_model") != "ellipsoid":
+                raise CaseError(scene.source, "engine_options.mujoco.fluidcoef",
+                                'fluid_model = "ellipsoid" beside it (the inertia-box model has '
+                                "no coefficients)", value)
+            out[key] = [float(x) for x in value]
+            continue
         if key not in OPTIONS:
             raise CaseError(scene.source, f"engine_options.mujoco.{key}",
-                            f"one of the MuJoCo adapter's options {sorted(OPTIONS)}",
+                            f"one of the MuJoCo adapter's options {sorted((*OPTIONS, *FLUID_OPTIONS))}",
                             f"unknown option {key!r}")
         allowed, _ = OPTIONS[key]
         if not any(value == a and type(value) is type(a) for a in allowed):
             raise CaseError(scene.source, f"engine_options.mujoco.{key}", f"one of {list(allowed)}",
                             value)
         out[key] = value
-    return {key: out.get(key, default) for key, (_, default) in OPTIONS.items()}
+    merged = {key: out.get(key, default) for key, (_, default) in OPTIONS.items()}
+    merged["fluidcoef"] = out.get("fluidcoef", list(FLUIDCOEF_DEFAULT))
+    return merged
+
+
+def medium_limits(scene: Scene) -> str | None:
+    """Why MuJoCo cannot give this scene's medium exactly, or None. Buoyancy is given as
+    ``gravcomp`` (an upward force at the centre of mass): a body whose centre of mass is not its
+    shape's centroid (the centre of buoyancy) would miss the buoyancy's torque."""
+    medium = scene.effects.medium
+    if medium is None or medium.density == 0.0 or scene.effects.gravity is None:
+        return None
+    from crosscheck.scene.massprops import shape_mass_properties
+
+    for body in scene.bodies:
+        centroid = np.asarray(shape_mass_properties(body.shape, 1.0).com, float)
+        off = float(np.linalg.norm(np.asarray(body.com, float) - centroid))
+        size = max(float(np.max(np.abs(np.concatenate(body.shape.bounding_box())))), 1e-300)
+        if off > 1e-9 * size:
+            return (f"body {body.name!r}: its centre of mass is {off:.3g} m from its shape's "
+                    "centroid, the centre of buoyancy; MuJoCo's buoyancy route (body gravcomp) "
+                    "acts at the centre of mass and would miss the buoyancy's torque")
+    return None
 
 
 # MuJoCo's compiler refuses a moving body whose mass or a principal moment is below mjMINVAL
@@ -412,6 +458,10 @@ class MujocoModel:
         self.dim = scene.dimension
         self.aligned = bool(self.options["align_free"]) and self.dim == 3
         self.contact = bool(scene.effects.contact)
+        self.medium = scene.effects.medium
+        # The ellipsoid model acts on geoms (fluidshape="ellipsoid"), the inertia-box model on
+        # the body's inertia alone.
+        self.ellipsoid = self.medium is not None and self.options.get("fluid_model") == "ellipsoid"
         self._depth = extrusion_half_depth(scene) if self.contact and self.dim == 2 else 0.0
         self._pairs = []
         self.mjcf = self._mjcf()
@@ -561,6 +611,13 @@ class MujocoModel:
         world_geoms = asset = contact = ""
         if self.contact:
             body_geoms, world_geoms, asset, contact = self._contact_xml()
+        elif self.ellipsoid:
+            body_geoms, asset = self._fluid_geoms()
+        if self.ellipsoid:
+            coef = _v(self.options.get("fluidcoef", FLUIDCOEF_DEFAULT))
+            body_geoms = {i: g.replace("<geom ", f'<geom fluidshape="ellipsoid" fluidcoef="{coef}" ',
+                                       1) for i, g in body_geoms.items()}
+        gravcomp = self._gravcomp()
         bodies = []
         for i, body in enumerate(scene.bodies):
             if self.dim == 3:
@@ -577,7 +634,8 @@ class MujocoModel:
                           f'<joint name="j{i}r" type="hinge" axis="0 0 1" pos="{_v(c)}"/>')
                 inertial = (f'<inertial pos="{_v(c)}" mass="{_f(body.mass)}" '
                             f'diaginertia="{_v([moment, moment, moment])}"/>')
-            bodies.append(f'<body name="b{i}">{joints}{inertial}{body_geoms.get(i, "")}'
+            buoy = f' gravcomp="{_f(gravcomp[i])}"' if gravcomp[i] != 0.0 else ""
+            bodies.append(f'<body name="b{i}"{buoy}>{joints}{inertial}{body_geoms.get(i, "")}'
                           f'{"".join(sites[i])}</body>')
         tendon_xml = f"<tendon>{''.join(tendons)}</tendon>" if tendons else ""
         # inertiafromgeom false and no bounds: the inertial is used exactly as written.
@@ -589,6 +647,28 @@ class MujocoModel:
             f"{contact}{tendon_xml}</mujoco>"
         )
 
+    def _fluid_geoms(self) -> tuple[dict[int, str], str]:
+        """One massless, non-colliding geom per body, its shape at its place in the MuJoCo body
+        frame: what the ellipsoid fluid model acts on (scenes without contact have no geoms)."""
+        assets: list[str] = []
+        geoms = {}
+        for i, body in enumerate(self.scene.bodies):
+            t, q_p, _, _ = self._frame(body)
+            geoms[i] = self._geom(f"g{i}", body.shape, -(quat_to_matrix(q_p).T @ t),
+                                  quat_conj(q_p), assets)
+        return geoms, (f"<asset>{''.join(assets)}</asset>" if assets else "")
+
+    def _gravcomp(self) -> np.ndarray:
+        """Per body, the buoyancy as MuJoCo's gravity compensation: gravcomp = rho_f V / m (an
+        upward force rho_f V |g| at the centre of mass). MuJoCo's fluid models apply no buoyancy
+        (measured: a body at rest in a medium of density 1000 accelerates at exactly g)."""
+        out = np.zeros(len(self.scene.bodies))
+        if self.medium is None or self.medium.density == 0.0:
+            return out
+        from crosscheck.quantities import body_volumes
+
+        return self.medium.density * body_volumes(self.scene) / self.scene.masses
+
     def _configure(self) -> None:
         m = self.model
         opt = m.opt
@@ -599,8 +679,10 @@ class MujocoModel:
         # Explicitly zero what could add forces the scene did not ask for.
         opt.wind[:] = 0.0
         opt.magnetic[:] = 0.0
-        opt.density = 0.0
-        opt.viscosity = 0.0
+        # The medium, if any: MuJoCo's fluid forces (the inertia-box model, or the ellipsoid
+        # model on the geoms that carry fluidshape="ellipsoid").
+        opt.density = self.medium.density if self.medium is not None else 0.0
+        opt.viscosity = self.medium.viscosity if self.medium is not None else 0.0
         opt.jacobian = int(getattr(mujoco.mjtJacobian,
                                    f"mjJAC_{self.options['jacobian'].upper()}"))
         dis = mujoco.mjtDisableBit
@@ -948,6 +1030,65 @@ class MujocoModel:
             "extrusion_half_depth_2d": self._depth if self.dim == 2 else None,
         }
 
+    def medium_settings(self) -> dict[str, Any]:
+        """The fluid model as compiled: per body the geometry MuJoCo derives and the force terms
+        it applies (docs/engines.md, "Medium"), the buoyancy route read back."""
+        from crosscheck.quantities import body_volumes
+
+        m = self.model
+        rho, mu = float(m.opt.density), float(m.opt.viscosity)
+        volumes = body_volumes(self.scene)
+        bodies = []
+        for k, (b, body) in enumerate(zip(self.bodies, self.scene.bodies, strict=True)):
+            bid = b.body_id
+            entry: dict[str, Any] = {
+                "name": body.name,
+                "shape_volume": float(volumes[k]),
+                "gravcomp": float(m.body_gravcomp[bid]),
+                "buoyancy_N": float(m.body_gravcomp[bid] * m.body_mass[bid]
+                                    * np.linalg.norm(m.opt.gravity)),
+            }
+            if self.ellipsoid:
+                gid = int(m.body_geomadr[bid])
+                fl = np.array(m.geom_fluid[gid])
+                semi = _geom_semi_axes(m, gid)
+                entry.update({
+                    "model": "ellipsoid",
+                    "fluidcoef": fl[1:6].tolist(),
+                    "semi_axes": semi.tolist(),
+                    "ellipsoid_volume": float(4.0 / 3.0 * np.pi * np.prod(semi)),
+                    "viscous_force_coefficient": float(6 * np.pi * mu * np.mean(semi)),
+                    "viscous_torque_coefficient": float(8 * np.pi * mu * np.mean(semi) ** 3),
+                    "added_mass_per_density": fl[6:9].tolist(),
+                    "added_inertia_per_density": fl[9:12].tolist(),
+                })
+            else:
+                r = _inertia_box_half_sizes(float(m.body_mass[bid]), np.array(m.body_inertia[bid]))
+                r_eq = float(np.mean(r))
+                entry.update({
+                    "model": "inertia_box",
+                    "box_half_sizes": r.tolist(),
+                    "box_volume": float(8.0 * np.prod(r)),
+                    "box_to_shape_volume": float(8.0 * np.prod(r) / volumes[k]),
+                    "r_eq": r_eq,
+                    "viscous_force_coefficient": float(6 * np.pi * mu * r_eq),
+                    "viscous_torque_coefficient": float(8 * np.pi * mu * r_eq ** 3),
+                    "quadratic_force_coefficients": [float(2 * rho * r[(i + 1) % 3]
+                                                           * r[(i + 2) % 3]) for i in range(3)],
+                })
+            bodies.append(entry)
+        terms = ("ellipsoid: f = -rho [C_blunt A_proj + C_slender (pi r_max r_mid - A_proj)] |v| v"
+                 " - 6 pi mu r_D v + C_M rho V w x v + (m_A v) x w + Kutta lift; torque -8 pi mu "
+                 "r_D^3 w and the angular drag; no -m_A dv/dt" if self.ellipsoid else
+                 "inertia box: f_i = -2 rho r_j r_k |v_i| v_i - 6 pi mu r_eq v_i, torque_i = "
+                 "-rho r_i (r_j^4 + r_k^4) |w_i| w_i / 2 - 8 pi mu r_eq^3 w_i (body inertial axes)")
+        return {"model": "ellipsoid" if self.ellipsoid else "inertia_box",
+                "density": rho, "viscosity": mu, "terms": terms,
+                "buoyancy": "body gravcomp = rho V / m, V the shape's volume (MuJoCo's fluid "
+                            "models apply none)",
+                "added_mass": "none applied (no -m_A dv/dt term in either model)",
+                "wind": np.array(m.opt.wind).tolist(), "bodies": bodies}
+
     def effective(self, arrays=None) -> dict[str, Any]:
         """Settings read back from the compiled model, not from what was asked for."""
         m, d = self.model, self.data
@@ -1014,9 +1155,33 @@ class MujocoModel:
                      if self.scene.effects.loads else "none",
             "stepping": self.stepping_mode,
             "contact": self.contact_settings() if self.contact else "disabled (mjDSBL_CONTACT)",
+            "medium": self.medium_settings() if self.medium is not None else "none",
             "warnings": warnings,
             "options": dict(self.options),
         }
+
+
+def _inertia_box_half_sizes(mass: float, moments: np.ndarray) -> np.ndarray:
+    """MuJoCo's equivalent inertia box: r_i = sqrt(3 (I_j + I_k - I_i) / (2 M)), principal
+    axes (the box whose uniform mass has these moments; docs/engines.md, "Medium")."""
+    i = np.asarray(moments, float)
+    return np.sqrt(np.maximum(1.5 * (i.sum() - 2.0 * i) / mass, 0.0))
+
+
+def _geom_semi_axes(m, gid: int) -> np.ndarray:
+    """The ellipsoid semi-axes MuJoCo's fluid model uses for a geom (mju_geomSemiAxes): sphere
+    (r, r, r), capsule (r, r, h + r), cylinder (r, r, h), box and ellipsoid their half sizes; a
+    mesh its size as compiled."""
+    size = np.array(m.geom_size[gid], float)
+    kind = int(m.geom_type[gid])
+    g = mujoco.mjtGeom
+    if kind == int(g.mjGEOM_SPHERE):
+        return np.full(3, size[0])
+    if kind == int(g.mjGEOM_CAPSULE):
+        return np.array([size[0], size[0], size[1] + size[0]])
+    if kind == int(g.mjGEOM_CYLINDER):
+        return np.array([size[0], size[0], size[1]])
+    return size
 
 
 def _name(m, obj, i: int) -> str:
@@ -1035,7 +1200,7 @@ class MujocoEngine(EngineBase):
         return Capabilities(
             dimensions=frozenset({2, 3}),
             shapes=frozenset(_SHAPES_3D + _SHAPES_2D),
-            effects=frozenset({"gravity", "springs", "drag", "loads", "contact"}),
+            effects=frozenset({"gravity", "springs", "drag", "loads", "contact", "medium"}),
             integrators=INTEGRATORS,
             notes=dict(INTEGRATOR_NOTES),
         )
@@ -1047,7 +1212,7 @@ class MujocoEngine(EngineBase):
         if mujoco is None:  # pragma: no cover
             return "the mujoco package is not installed"
         return (super().not_applicable(scene, integrator) or mujoco_limits(scene)
-                or contact_limits(scene))
+                or contact_limits(scene) or medium_limits(scene))
 
     def build(self, scene: Scene, integrator: str, dt: float) -> MujocoModel:
         """The compiled model with the scene's initial state set (also used by benchmarks)."""

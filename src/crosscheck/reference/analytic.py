@@ -143,6 +143,12 @@ def _require_no_springs(scene: Scene, name: str) -> None:
         raise _refuse(name, "the scene has springs")
     if scene.effects.contact or scene.fluid is not None:
         raise _refuse(name, "the scene has contact or a fluid")
+    _require_no_medium(scene, name)
+
+
+def _require_no_medium(scene: Scene, name: str) -> None:
+    if scene.effects.medium is not None:
+        raise _refuse(name, "the scene has a medium (its solution is medium_settling)")
 
 
 def _translate(scene: Scene, i: int, t: np.ndarray, traj: Trajectory) -> None:
@@ -220,6 +226,7 @@ def harmonic_oscillator(scene: Scene, times: np.ndarray) -> Trajectory:
     name = "harmonic_oscillator"
     if scene.effects.contact or scene.fluid is not None:
         raise _refuse(name, "the scene has contact or a fluid")
+    _require_no_medium(scene, name)
     t = np.asarray(times, float)
     traj = _new(scene, t, name)
     for i, body in enumerate(scene.bodies):
@@ -527,3 +534,9 @@ from crosscheck.reference import contact_analytic as _contact  # noqa: E402
 
 SOLUTIONS.update(_contact.SOLUTIONS)
 EXTRA_METRICS.update(_contact.EXTRA_METRICS)
+
+# -- a sphere in a quiescent medium (its own module, registered here the same way) --------------
+from crosscheck.reference import medium_analytic as _medium  # noqa: E402
+
+SOLUTIONS.update(_medium.SOLUTIONS)
+EXTRA_METRICS.update(_medium.EXTRA_METRICS)

@@ -127,6 +127,8 @@ def _contact_only(scene: Scene, name: str, n_bodies: int | None = None,
         raise _refuse(name, "the scene has a fluid")
     if scene.effects.springs or scene.effects.drag or scene.effects.loads:
         raise _refuse(name, "the scene has springs, drag or loads")
+    if scene.effects.medium is not None:
+        raise _refuse(name, "the scene has a medium")
     if scene.statics and not statics:
         raise _refuse(name, f"the scene has statics ({', '.join(scene.static_names)}) the "
                       "model does not know about")

@@ -88,6 +88,11 @@ def _lift(v) -> np.ndarray:
 
 def equations(scene: Scene) -> Equations:
     """Read the scene's bodies and declared effects (see the module docstring for the rules)."""
+    if scene.effects.medium is not None:
+        # The medium's drag law is each engine's own model (docs/engines.md); these equations
+        # have none, and a reference that left it out would be silently wrong.
+        raise ValueError("the Newton-Euler equations model no medium ([effects] medium): use an "
+                         "analytic reference (medium_settling) or another engine's run")
     d = scene.dimension
     n = len(scene.bodies)
     mass = np.array([b.mass for b in scene.bodies], float)

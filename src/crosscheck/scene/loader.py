@@ -36,6 +36,7 @@ from crosscheck.scene.model import (
     Ground,
     Load,
     Material,
+    Medium,
     Reference,
     RunSettings,
     Scene,
@@ -516,9 +517,30 @@ def _effects(f: Fields, dimension: int, names: list[str], has_fluid: bool) -> Ef
             torque.setflags(write=False)
         loads.append(Load(body=body, force=force, torque=torque))
         ld.done()
+    medium = _medium(f, dimension, has_fluid) if f.has("medium") else None
     f.done()
     return Effects(gravity=gravity, springs=tuple(springs), drag=tuple(drags), loads=tuple(loads),
-                   contact=contact, fluid=has_fluid)
+                   contact=contact, fluid=has_fluid, medium=medium)
+
+
+def _medium(f: Fields, dimension: int, has_fluid: bool) -> Medium:
+    """``[effects] medium = { density = kg/m^3, viscosity = Pa s }``: a quiescent medium (3D rigid
+    scenes; docs/cases.md). Each key defaults to 0; at least one must be positive."""
+    if has_fluid:
+        raise f.error("medium", "no medium in a [fluid] case (the resolved fluid is the medium "
+                      "its bodies move through)", f.raw("medium"))
+    if dimension != 3:
+        raise f.error("medium", "no medium in a 2D case (the engines' medium models act on "
+                      "finite 3D bodies; a 2D body in a fluid is a [fluid] case)",
+                      f.raw("medium"))
+    m = f.sub("medium")
+    medium = Medium(density=m.number("density", 0.0, nonnegative=True, unit="kg/m^3"),
+                    viscosity=m.number("viscosity", 0.0, nonnegative=True, unit="Pa s"))
+    m.done()
+    if medium.density == 0.0 and medium.viscosity == 0.0:
+        raise f.error("medium", "a density or a viscosity above zero (a medium of neither "
+                      "changes nothing)", f.raw("medium"))
+    return medium
 
 
 def _ground(f: Fields, dimension: int, materials: dict[str, Material]) -> Ground:

@@ -140,6 +140,20 @@ class Load:
 
 
 @dataclass(frozen=True)
+class Medium:
+    """A quiescent medium the bodies of a 3D rigid scene move through (``[effects] medium``).
+
+    It exchanges energy with the bodies: buoyancy ``-density V g`` at each body's centre of
+    buoyancy (V the shape's volume), and a drag whose law is the engine's own model (MuJoCo's
+    inertia-box or ellipsoid fluid model; docs/engines.md). Only engines that model a medium run
+    such a scene.
+    """
+
+    density: float = 0.0  # kg/m^3
+    viscosity: float = 0.0  # Pa s (dynamic viscosity)
+
+
+@dataclass(frozen=True)
 class Effects:
     """Only what is listed here is simulated, in every engine."""
 
@@ -149,6 +163,7 @@ class Effects:
     loads: tuple[Load, ...] = ()
     contact: bool = False  # reserved for the contact issue
     fluid: bool = False  # set when the scene has a [fluid] domain
+    medium: Medium | None = None  # a quiescent medium (3D rigid scenes only)
 
     def names(self) -> tuple[str, ...]:
         """The effect names the scene calls for, as engines declare them in capabilities."""
@@ -165,6 +180,8 @@ class Effects:
             out.append("contact")
         if self.fluid:
             out.append("fluid")
+        if self.medium is not None:
+            out.append("medium")
         return tuple(out)
 
     def gravity_vector(self, dimension: int) -> np.ndarray:
