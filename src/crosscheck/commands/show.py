@@ -95,9 +95,12 @@ def run(args) -> int:
                   f"engines {', '.join(r.engines)}")
     for engine, names in r.integrators.items():
         console.print(f"  {engine}: {escape(', '.join(names))}")
+    medium = scene.effects.medium
     console.print(f"effects: {', '.join(scene.effects.names()) or 'none'}"
                   + (f"; gravity {scene.effects.gravity.tolist()}"
-                     if scene.effects.gravity is not None else ""))
+                     if scene.effects.gravity is not None else "")
+                  + (f"; medium: density {medium.density} kg/m^3, viscosity {medium.viscosity} "
+                     "Pa s" if medium is not None else ""))
     table = Table(title="bodies")
     for col in ("name", "shape", "mass kg", "com (body)", "com (world)", "principal moments",
                 "position", "velocity", "angular velocity"):

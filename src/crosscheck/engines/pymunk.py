@@ -626,6 +626,8 @@ class PymunkEngine(EngineBase):
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if _pm is None:  # pragma: no cover
             return "the pymunk package is not installed"
+        if scene.effects.medium is not None:  # before the dimension: the reason that matters
+            return self.effect_reasons["medium"]
         if scene.dimension != 2:
             return "pymunk is 2D"
         reason = super().not_applicable(scene, integrator)

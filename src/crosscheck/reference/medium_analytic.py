@@ -1,6 +1,7 @@
 """Closed forms of a sphere settling or rising through a quiescent medium (``[effects] medium``).
 
-One solution, ``medium_settling``, for 3D scenes whose bodies are spheres moving along one line:
+One solution, ``medium_settling``, for 3D scenes whose bodies are spheres (or boxes moving
+face-on, quadratic law only) moving along one line:
 released from rest (or with a velocity along the net force) in uniform gravity, with no spin,
 no springs, loads, drag entries or contact. Along the unit vector n of the net force the
 velocity u = v . n obeys
@@ -14,7 +15,8 @@ chosen by ``params.drag``:
 
 * ``"stokes"``: b = 6 pi mu r, c = 0. u(t) = u_t + (u0 - u_t) exp(-t / tau), u_t = F / b,
   tau = m_e / b; from rest u_t = 2 (rho_s - rho_f) g r^2 / (9 mu) (with m = rho_s V).
-* ``"quadratic"``: b = 0, c = rho_f C_D A / 2, A = pi r^2, C_D = ``params.drag_coefficient``.
+* ``"quadratic"``: b = 0, c = rho_f C_D A / 2, A = pi r^2 (a box: the face normal to the
+  motion), C_D = ``params.drag_coefficient``.
   From rest u(t) = u_t tanh(t F / (m_e u_t)), u_t = sqrt(2 F / (rho_f C_D A)).
 * ``"stokes+quadratic"``: both (the law MuJoCo's ellipsoid model applies to a sphere when the
   medium has both a density and a viscosity, with C_D = 2 x its blunt coefficient). Roots
@@ -67,15 +69,41 @@ def law(scene: Scene, i: int) -> dict:
     if drag not in DRAG_LAWS:
         raise _refuse(f"reference.params.drag must be one of {list(DRAG_LAWS)}, got {drag!r}")
     body = scene.bodies[i]
-    if body.shape.kind != "sphere":
-        raise _refuse(f"{body.name!r} is a {body.shape.kind}, not a sphere")
+    kind = body.shape.kind
+    if kind not in ("sphere", "box"):
+        raise _refuse(f"{body.name!r} is a {kind}, not a sphere or a box")
     if np.linalg.norm(np.asarray(body.com, float)) > 1e-12:
-        raise _refuse(f"{body.name!r} has its centre of mass off the sphere's centre")
+        raise _refuse(f"{body.name!r} has its centre of mass off its shape's centre")
     if np.any(np.asarray(body.angular_velocity, float) != 0.0):
         raise _refuse(f"{body.name!r} spins (the solution has no rotational drag or lift)")
-    r = float(body.shape.radius)
-    volume = 4.0 / 3.0 * math.pi * r**3
     rho, mu = fx.medium.density, fx.medium.viscosity
+    g = fx.gravity_vector(3).astype(float)
+    v0 = np.asarray(body.velocity, float)
+    if kind == "sphere":
+        r = float(body.shape.radius)
+        volume, area = 4.0 / 3.0 * math.pi * r**3, math.pi * r * r
+    else:
+        size = np.asarray(body.shape.size, float)
+        volume = float(np.prod(size))
+        if "stokes" in drag:
+            raise _refuse(f"{body.name!r} is a box: Stokes' law 6 pi mu r v is a sphere's")
+        r = None
+    net = (body.mass - rho * volume) * g  # weight less buoyancy
+    if np.linalg.norm(net) > 0:
+        n = net / np.linalg.norm(net)
+    elif np.linalg.norm(v0) > 0:
+        n = v0 / np.linalg.norm(v0)
+    else:
+        n = np.array([0.0, 0.0, -1.0])  # nothing moves
+    if kind == "box":
+        # Face-on only: the motion along one of the box's axes, the drag area the face normal
+        # to it (a box moving obliquely has no single area, and its drag turns it).
+        axes = body.rotation()
+        along = np.abs(axes.T @ n)
+        k_axis = int(np.argmax(along))
+        if abs(along[k_axis] - 1.0) > 1e-9:
+            raise _refuse(f"{body.name!r} does not move along one of its box axes")
+        area = float(np.prod(np.delete(size, k_axis)))
     c_a = float(params.get("added_mass_coefficient", 0.0))
     m_e = body.mass + c_a * rho * volume
     b = 6.0 * math.pi * mu * r if "stokes" in drag else 0.0
@@ -83,19 +111,10 @@ def law(scene: Scene, i: int) -> dict:
     if "quadratic" in drag:
         if "drag_coefficient" not in params:
             raise _refuse("a quadratic law needs reference.params.drag_coefficient (C_D)")
-        c = 0.5 * rho * float(params["drag_coefficient"]) * math.pi * r * r
+        c = 0.5 * rho * float(params["drag_coefficient"]) * area
     if b == 0.0 and c == 0.0:
         raise _refuse("the medium exerts no drag under this law (zero viscosity for stokes, "
                       "zero density for quadratic)")
-    g = fx.gravity_vector(3).astype(float)
-    net = (body.mass - rho * volume) * g  # weight less buoyancy
-    v0 = np.asarray(body.velocity, float)
-    if np.linalg.norm(net) > 0:
-        n = net / np.linalg.norm(net)
-    elif np.linalg.norm(v0) > 0:
-        n = v0 / np.linalg.norm(v0)
-    else:
-        n = np.array([0.0, 0.0, -1.0])  # nothing moves
     if np.linalg.norm(v0 - (v0 @ n) * n) > PARALLEL_RTOL * max(np.linalg.norm(v0), 1e-300):
         raise _refuse(f"the initial velocity of {body.name!r} leaves the line of the net force")
     u0 = float(v0 @ n)
