@@ -112,7 +112,7 @@ def test_ellipsoid_terms_on_a_sphere_and_a_box():
                                                                      abs=1e-9)
 
 
-# -- the adapter ------------------------------------------------------------------------------------
+# -- the adapter ---------------------------------------------------------------------------------
 def _case(name: str):
     return load_case(CASES / f"{name}.toml")
 
@@ -203,7 +203,7 @@ def test_inertia_box_sphere_differs_from_the_closed_form_by_construction():
                                rtol=1e-12, atol=0)
 
 
-# -- invariance -------------------------------------------------------------------------------------
+# -- invariance ----------------------------------------------------------------------------------
 def _moved(scene, rot: np.ndarray, shift: np.ndarray, boost: np.ndarray):
     """The scene turned by rot about the origin (gravity and the body with it), moved by shift
     and boosted by boost (world frame, after turning)."""

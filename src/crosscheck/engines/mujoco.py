@@ -189,8 +189,9 @@ def engine_options(scene: Scene) -> dict[str, Any]:
             out[key] = [float(x) for x in value]
             continue
         if key not in OPTIONS:
+            known = sorted({*OPTIONS, "fluidcoef"})
             raise CaseError(scene.source, f"engine_options.mujoco.{key}",
-                            f"one of the MuJoCo adapter's options {sorted((*OPTIONS, *FLUID_OPTIONS))}",
+                            f"one of the MuJoCo adapter's options {known}",
                             f"unknown option {key!r}")
         allowed, _ = OPTIONS[key]
         if not any(value == a and type(value) is type(a) for a in allowed):
@@ -615,8 +616,8 @@ class MujocoModel:
             body_geoms, asset = self._fluid_geoms()
         if self.ellipsoid:
             coef = _v(self.options.get("fluidcoef", FLUIDCOEF_DEFAULT))
-            body_geoms = {i: g.replace("<geom ", f'<geom fluidshape="ellipsoid" fluidcoef="{coef}" ',
-                                       1) for i, g in body_geoms.items()}
+            fluid = f'<geom fluidshape="ellipsoid" fluidcoef="{coef}" '
+            body_geoms = {i: g.replace("<geom ", fluid, 1) for i, g in body_geoms.items()}
         gravcomp = self._gravcomp()
         bodies = []
         for i, body in enumerate(scene.bodies):
