@@ -285,3 +285,32 @@ def test_an_offset_centre_of_mass_is_not_applicable_in_a_dense_medium():
     off = replace(scene, bodies=(replace(scene.bodies[0], com=np.array([0.01, 0.0, 0.0])),))
     reason = ENGINE.not_applicable(off, "rk4")
     assert reason is not None and "centre of buoyancy" in reason
+
+
+def test_a_long_cylinder_per_unit_length_the_2d_mapping():
+    # docs/engines.md, "MuJoCo's stateless medium against a resolved fluid": a 2D disc of radius R
+    # maps to a cylinder of length L >> R. Across its axis, per unit length: quadratic drag
+    # rho C_D R v^2 with C_D = sqrt(3)/2 (inertia box) or pi/2 C_blunt (ellipsoid); viscous
+    # 6 pi mu (r_x + r_y + r_z) / 3 / L -> pi mu as L grows.
+    r, length = 0.05, 2.0
+    m = 2000.0 * math.pi * r * r * length
+    ix, iz = m * (3 * r * r + length**2) / 12, m * r * r / 2
+    geom = (f'<geom type="cylinder" size="{r} {length / 2}" fluidshape="ellipsoid" '
+            'contype="0" conaffinity="0"/>')
+    per_length = {}
+    for name, g in (("box", ""), ("ellipsoid", geom)):
+        for rho, mu in ((1000.0, 0.0), (0.0, 1.0)):
+            xml = (f'<mujoco><compiler inertiafromgeom="false"/><option density="{rho}" '
+                   f'viscosity="{mu}"/><worldbody><body><freejoint/><inertial pos="0 0 0" '
+                   f'mass="{m}" diaginertia="{ix} {ix} {iz}"/>{g}</body></worldbody></mujoco>')
+            model = mujoco.MjModel.from_xml_string(xml)
+            data = mujoco.MjData(model)
+            per_length[name, rho > 0] = -_fluid_force(model, data, [1.0, 0.0, 0.0])[0] / length
+    assert per_length["box", True] / (1000.0 * r) == pytest.approx(math.sqrt(3) / 2, rel=1e-12)
+    assert per_length["ellipsoid", True] / (1000.0 * r) == pytest.approx(math.pi / 2 * 0.5,
+                                                                         rel=1e-12)
+    half = math.sqrt(3) / 2 * r
+    assert per_length["box", False] == pytest.approx(
+        6 * math.pi * (2 * half + length / 2) / 3 / length, rel=1e-12)  # 1.087 pi here
+    assert per_length["ellipsoid", False] == pytest.approx(
+        6 * math.pi * (2 * r + length / 2) / 3 / length, rel=1e-12)  # 1.1 pi here
