@@ -517,3 +517,41 @@ def convection(up, vp, ustate, vstate, dx, nu_out, nv_out):
             ue = 0.5 * (up[i + 1, j] + up[i + 1, j + 1])
             uw = 0.5 * (up[i, j] + up[i, j + 1])
             nv_out[i, j] = ((ue * ve - uw * vw) + (vn * vn - vs * vs)) * inv
+
+
+@njit(cache=True)
+def fluid_moments(phi, open_area, dx, sub):
+    """Area of the fluid (as ``fluid_area_weighted``) and its first moments ``integral of x`` and
+    ``integral of y`` (m^2, m^3 per unit depth): the fluid's potential energy in a coupled run."""
+    nx, ny = phi.shape
+    inv_dx = 1.0 / dx
+    h = dx / sub
+    area = 0.0
+    mx = 0.0
+    my = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            w = open_area[i, j]
+            if w <= 0.0:
+                continue
+            f = phi[i, j]
+            if f >= 0.75 * dx:
+                continue
+            if f <= -0.75 * dx:
+                a = dx * dx * w
+                area += a
+                mx += a * (i + 0.5) * dx
+                my += a * (j + 0.5) * dx
+                continue
+            for s in range(sub):
+                for t in range(sub):
+                    x = (i + (s + 0.5) / sub) * dx
+                    y = (j + (t + 0.5) / sub) * dx
+                    ps = sample(phi, -0.5, -0.5, x, y, inv_dx)[0]
+                    fr = 0.5 - ps / h
+                    fr = 0.0 if fr < 0.0 else (1.0 if fr > 1.0 else fr)
+                    a = dx * dx * w * fr / (sub * sub)
+                    area += a
+                    mx += a * x
+                    my += a * y
+    return area, mx, my
