@@ -185,6 +185,12 @@ def _check_fluid_effects(file: Path, effects: Effects) -> None:
         if present:
             raise CaseError(file, f"effects.{key}", "none in a fluid case with [[bodies]] (the "
                             "body moves under gravity and the fluid's forces only)", key)
+    g = effects.gravity
+    if g is not None and g[0] != 0.0:
+        # the hydrostatic part of the body's force is taken at the water level beside the body,
+        # measured up the grid's columns (sim/fluid/coupling.py)
+        raise CaseError(file, "effects.gravity", "gravity along -y (or none) in a fluid case "
+                        "with [[bodies]]", g.tolist())
 
 
 # -- sections -------------------------------------------------------------------------------------
