@@ -143,11 +143,14 @@ def _chord(kind, c, r, verts, y, x0, x1):
 
 @njit(cache=True)
 def window_geometry(kind, c, r, verts, i0, j0, wi, wj, dx, gs, gw):
-    """Face fractions (u (wi+1, wj), v (wi, wj+1)), distances at the u, v samples and cell
-    centres, and cell solid area fractions (wi, wj), for the window whose lower-left cell is
-    (i0, j0)."""
+    """Face fractions (u (wi+1, wj), v (wi, wj+1)), the midpoints of their solid parts (in
+    cells from the face's low end; 0.5 where the face is open), distances at the u, v samples
+    and cell centres, and cell solid area fractions (wi, wj), for the window whose lower-left
+    cell is (i0, j0)."""
     u_frac = np.zeros((wi + 1, wj))
     v_frac = np.zeros((wi, wj + 1))
+    u_mid = np.full((wi + 1, wj), 0.5)
+    v_mid = np.full((wi, wj + 1), 0.5)
     u_dist = np.empty((wi + 1, wj))
     v_dist = np.empty((wi, wj + 1))
     c_dist = np.empty((wi, wj))
@@ -158,6 +161,8 @@ def window_geometry(kind, c, r, verts, i0, j0, wi, wj, dx, gs, gw):
             y = (j0 + b) * dx
             ta, tb = seg_interval(kind, c, r, verts, x, y, x, y + dx)
             u_frac[a, b] = _snap(tb - ta)
+            if u_frac[a, b] > 0.0:
+                u_mid[a, b] = 0.5 * (ta + tb)
             u_dist[a, b] = signed_distance(kind, c, r, verts, x, y + 0.5 * dx)
     for a in range(wi):
         x = (i0 + a) * dx
@@ -165,6 +170,8 @@ def window_geometry(kind, c, r, verts, i0, j0, wi, wj, dx, gs, gw):
             y = (j0 + b) * dx
             ta, tb = seg_interval(kind, c, r, verts, x, y, x + dx, y)
             v_frac[a, b] = _snap(tb - ta)
+            if v_frac[a, b] > 0.0:
+                v_mid[a, b] = 0.5 * (ta + tb)
             v_dist[a, b] = signed_distance(kind, c, r, verts, x + 0.5 * dx, y)
     nk = verts.shape[0]
     brk = np.empty(2 + 4 + max(nk, 2))
@@ -215,7 +222,7 @@ def window_geometry(kind, c, r, verts, i0, j0, wi, wj, dx, gs, gw):
                     acc += gw[g] * w * 6.0 * s * (1.0 - s) * _chord(kind, c, r, verts, yy,
                                                                       x0, x1)
             area[a, b] = _snap(acc / (dx * dx))
-    return u_frac, v_frac, u_dist, v_dist, c_dist, area
+    return u_frac, v_frac, u_mid, v_mid, u_dist, v_dist, c_dist, area
 
 
 @njit(cache=True)

@@ -21,7 +21,7 @@ One coupled step (``FluidState.step`` calls the pieces in this order):
 4. the coupled projection (``pressure.project_coupled``): with ``J`` the body's flux through the
    cells' faces (``J_c = sum_f s_f beta_f (e_f, (r_f x e_f)_z)``, ``beta_f`` the face's solid
    fraction belonging to the body, ``s_f`` +-1 outward, ``r_f`` from the centre of mass to the
-   face centre) and ``D = rho dx^2 diag(1/M, 1/M, 1/I)``, the scaled pressure solves
+   midpoint of the face's solid part: the flux of the rigid motion through it, exactly) and ``D = rho dx^2 diag(1/M, 1/M, 1/I)``, the scaled pressure solves
 
        (A + J D J^T) pt = -div*          (A: the weighted Poisson matrix of pressure.py)
 
@@ -38,9 +38,8 @@ with the forces at the new position).
 
 Limits, stated: one body; the body must keep clear of the domain's sides and the obstacles by
 ``CLEARANCE_CELLS`` cells (there is no contact between a body and solids in the fluid; a run in
-which it comes closer stops with that reason, as failure data); the lever arm of a face is its
-centre, not the centroid of its solid part (first order in dx for the rotation); the viscous
-exchange is explicit (above).
+which it comes closer stops with that reason, as failure data); the viscous exchange is
+explicit (above).
 """
 
 from __future__ import annotations
@@ -123,8 +122,8 @@ class BodyGeometry:
     jx: np.ndarray           # (wi, wj): the rows of J (see the module docstring)
     jy: np.ndarray
     jw: np.ndarray
-    ry_u: np.ndarray         # y of the u faces from the centre of mass
-    rx_v: np.ndarray         # x of the v faces from the centre of mass
+    ry_u: np.ndarray         # y of the u faces' solid parts' midpoints from the centre of mass
+    rx_v: np.ndarray         # x of the v faces' solid parts' midpoints
     kind: int                # bodygeom.CIRCLE or POLYGON, with the shape's world parameters
     centre: np.ndarray
     radius: float
@@ -155,13 +154,14 @@ def body_geometry(body: BodyState, nx: int, ny: int, dx: float,
         raise CouplingStop(f"body {body.name!r} left the domain")
     wi, wj = i1 - i0, j1 - j0
     kind, c, r, verts = bodygeom.shape_params(placed)
-    u_frac, v_frac, u_dist, v_dist, c_dist, solid_area = bodygeom.window_geometry(
-        kind, c, r, verts, i0, j0, wi, wj, dx, bodygeom.GAUSS_S, bodygeom.GAUSS_W)
-    # lever arms of the face centres (world coordinates minus the centre of mass)
-    ry_u = (np.arange(j0, j1) + 0.5) * dx - body.x[1]
-    ry_u = np.broadcast_to(ry_u[None, :], (wi + 1, wj))
-    rx_v = (np.arange(i0, i1) + 0.5) * dx - body.x[0]
-    rx_v = np.broadcast_to(rx_v[:, None], (wi, wj + 1))
+    u_frac, v_frac, u_mid, v_mid, u_dist, v_dist, c_dist, solid_area = \
+        bodygeom.window_geometry(kind, c, r, verts, i0, j0, wi, wj, dx, bodygeom.GAUSS_S,
+                                 bodygeom.GAUSS_W)
+    # lever arms of the midpoints of the faces' solid parts (world minus the centre of mass):
+    # the rigid velocity is linear along a face, so the flux through its solid part is exactly
+    # the fraction times the velocity there (a spinning circle moves no water)
+    ry_u = (np.arange(j0, j1)[None, :] + u_mid) * dx - body.x[1]
+    rx_v = (np.arange(i0, i1)[:, None] + v_mid) * dx - body.x[0]
     jx = u_frac[1:] - u_frac[:-1]
     jy = v_frac[:, 1:] - v_frac[:, :-1]
     jw = -(u_frac[1:] * ry_u[1:] - u_frac[:-1] * ry_u[:-1]) \
