@@ -23,7 +23,6 @@ median beside it. Writes ``benchmarks/results/coupling.{json,md}``.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform

@@ -310,10 +310,10 @@ def test_spinning_disc_feels_no_pressure_moment_and_viscosity_slows_it():
     the fluid gains at least what it loses (the semi-Lagrangian trace near the body also drags
     the fluid along, docs/fluid.md)."""
     def spin(nu):
-        scene = _case(f"""
+        scene = _case("""
 [[bodies]]
 name = "disc"
-shape = {{ circle = {{ radius = 0.1 }} }}
+shape = { circle = { radius = 0.1 } }
 density = 1000.0
 position = [0.5, 0.5]
 angular_velocity = 2.0

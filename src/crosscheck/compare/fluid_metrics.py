@@ -370,8 +370,9 @@ def floating_body(scene: Any, record: Any, params: dict) -> dict[str, float]:
       Archimedes: the equilibrium's submerged area is ``M / rho``;
     * ``heave_period``: the natural (undamped) period of the body's vertical motion, from a
       damped sinusoid fitted to it until the waves it radiates come back from the walls
-      (:func:`heave_fit`); ``heave_damping`` the fitted damping ratio; ``heave_period_estimate`` ``2 pi sqrt((M + a) / (rho g B))`` with the waterline
-      width ``B`` at equilibrium and the added mass ``a`` of :func:`heave_added_mass`;
+      (:func:`heave_fit`); ``heave_damping`` the fitted damping ratio;
+      ``heave_period_estimate`` ``2 pi sqrt((M + a) / (rho g B))`` with the waterline width
+      ``B`` at equilibrium and the added mass ``a`` of :func:`heave_added_mass`;
       ``heave_period_error`` their relative difference (an estimate's, see there);
     * ``energy_growth``: the largest rise of the total energy of fluid and body above its initial
       value, relative to ``M g |y(0) - y_eq|``; the level set's volume error puts water at the

@@ -21,7 +21,8 @@ One coupled step (``FluidState.step`` calls the pieces in this order):
 4. the coupled projection (``pressure.project_coupled``): with ``J`` the body's flux through the
    cells' faces (``J_c = sum_f s_f beta_f (e_f, (r_f x e_f)_z)``, ``beta_f`` the face's solid
    fraction belonging to the body, ``s_f`` +-1 outward, ``r_f`` from the centre of mass to the
-   midpoint of the face's solid part: the flux of the rigid motion through it, exactly) and ``D = rho dx^2 diag(1/M, 1/M, 1/I)``, the scaled pressure solves
+   midpoint of the face's solid part: the flux of the rigid motion through it, exactly) and
+   ``D = rho dx^2 diag(1/M, 1/M, 1/I)``, the scaled pressure solves
 
        (A + J D J^T) pt = -div*          (A: the weighted Poisson matrix of pressure.py)
 
