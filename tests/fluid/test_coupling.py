@@ -334,3 +334,27 @@ kinematic_viscosity = {nu}
     w = rec.series["body_omega.disc"]
     assert np.all(np.diff(w) < 0) and 1.0 < w[-1] < 1.8
     assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.5
+
+
+def test_floating_disc(fluid_case):
+    """A disc of half the water's density (radius 0.08 m, 5.1 cells) released at the box's point,
+    0.009 m above its half-immersed equilibrium, in the floating-box tank: the circle's cut cells, its exact
+    circular-segment buoyancy and the same metrics. Measured at this grid: draft error 0.49 %
+    (0.47 and 0.47 % at half and twice the resolution), volume 1e-5, energy growth 2.5 % (0.4 %
+    at twice); heave period 0.621 s (0.622 s at twice: converged) against the high-frequency
+    estimate 0.711 s, docs/fluid.md says why that is not judged here."""
+    import dataclasses
+
+    scene = fluid_case("floating_box")
+    disc = dataclasses.replace(scene.fluid.bodies[0], shape=Circle(0.08),
+                               mass=500.0 * math.pi * 0.08 ** 2,
+                               inertia=np.array([[0.5 * 500.0 * math.pi * 0.08 ** 4]]),
+                               com=np.zeros(2))
+    scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, bodies=(disc,)))
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    m = fluid_metrics(scene, rec)
+    assert m["draft_error"] < 0.01
+    assert m["volume_change"] < 1e-3
+    assert m["energy_growth"] < 0.05
+    assert 0.58 < m["heave_period"] < 0.66
