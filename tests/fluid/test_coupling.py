@@ -403,3 +403,15 @@ kinematic_viscosity = {nu}
     assert np.all(np.abs(gained) > 1e-6)
     assert lost == pytest.approx(gained, rel=1e-6)
     assert c.body.omega < w_before                   # the wall's drag slows the spin
+
+
+def test_body_reaching_a_wall_stops_the_run_with_the_reason():
+    """No contact between a body and the walls in the fluid: a box thrown above the water at
+    the side wall (0.4 m away at 3 m/s) ends the run when it comes within 1.5 cells of it, with
+    that reason (failure is data), and the samples before are kept."""
+    scene = _case(BOX % "0.42" + "velocity = [-3.0, 0.0]\n", TANK, duration=0.5)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is not None
+    assert "came within 1.5 cells of a wall" in rec.failure["reason"]
+    assert 0.12 < rec.failure["time"] < 0.135     # (0.4 - 1.5 / 64) m at 3 m/s: 0.126 s
+    assert rec.series["body_x.box"][-1] < 0.5

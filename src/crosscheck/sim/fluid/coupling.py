@@ -321,7 +321,7 @@ class Coupling:
         if not self.has_surface:
             return self.ny * self.dx
         g = self.geometry
-        cols = [i for i in (g.i0 - 1, g.i1) if 0 <= i < self.nx]
+        cols = [i for i in (g.i0 - 1, g.i1) if 0 <= i < self.nx] or [g.i0, g.i1 - 1]
         return float(np.mean([surface_height(phi, i, 0.0, self.dx) for i in cols]))
 
     def apply_impulse(self, dvel: np.ndarray) -> None:
