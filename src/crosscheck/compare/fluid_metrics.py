@@ -19,6 +19,8 @@ All metrics are non-negative magnitudes, compared by the comparer as ``value <= 
   crossings of the surface height at the probe and ``P_lin`` from ``w^2 = g k tanh(k h)``;
 * ``area_change``, ``shape_error`` (``zalesak``): relative area change and area of the symmetric
   difference between the final and the initial region, relative to the initial area;
+* ``floating_body`` (a case with one ``[[bodies]]`` entry floating in a rectangular tank, see
+  :func:`floating_body`): ``draft_error``, ``heave_period_error``, ``energy_growth``;
 * DFG benchmark (tables ``schafer_turek_2d1``, ``schafer_turek_2d2``, see :func:`dfg_metrics`):
   for each published quantity ``q`` its value ``q``, ``q_error`` (relative difference from the
   FEATFLOW reference value, or from the interval's centre where there is none) and
@@ -78,6 +80,8 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out.update(zalesak(scene, record))
     elif name in SCHAFER_TUREK:
         out.update(dfg_metrics(scene, record, name, params))
+    elif name == "floating_body":
+        out.update(floating_body(scene, record, params))
     out.update(table_metrics(scene, record))
     return out
 
@@ -322,3 +326,144 @@ def dfg_metrics(scene: Any, record: Any, name: str, params: dict) -> dict[str, f
              refs["strouhal_number"])
     out["periods"] = float(periods)
     return out
+
+
+# -- a floating body (two-way coupling) ----------------------------------------------------------
+def heave_added_mass(rho: float, waterline: float) -> float:
+    """``rho pi B^2 / 8`` per unit length, ``B`` the waterline width: the heave added mass of a
+    flat plate on the free surface and of a half-immersed circular cylinder (``rho pi R^2 / 2``,
+    the same number for ``B = 2 R``) in the high-frequency limit (Korotkin, Added Masses of Ship
+    Structures, Springer 2009, sec. 5). The added mass of a 2D floating body depends on the
+    frequency (Ursell 1949) and on the tank's walls and depth, so this gives an estimate of the
+    natural period, not a reference value."""
+    return rho * math.pi * waterline ** 2 / 8.0
+
+
+def _body_series(record: Any, name: str) -> dict[str, np.ndarray]:
+    s = record.series
+    return {k: s[f"body_{k}.{name}"] for k in ("x", "y", "angle", "vx", "vy", "omega")}
+
+
+def _placed_at(body: Any, x: float, y: float, angle: float):
+    from crosscheck.rotations import angle_to_matrix
+    from crosscheck.scene.shapes import Placed
+
+    origin = np.array([x, y]) - angle_to_matrix(angle) @ np.asarray(body.com, float)[:2]
+    return Placed(body.shape, origin, angle)
+
+
+def submerged_area(body: Any, x: float, y: float, angle: float, level: float) -> float:
+    """Area of the body at the pose (centre of mass ``x, y``, ``angle``) below ``y = level``."""
+    from crosscheck.sim.fluid import bodygeom
+
+    kind, c, r, verts = bodygeom.shape_params(_placed_at(body, x, y, angle))
+    return bodygeom.submerged(kind, c, r, verts, np.array([0.0, 1.0]), level)[0]
+
+
+def floating_body(scene: Any, record: Any, params: dict) -> dict[str, float]:
+    """A body floating in a rectangular tank without obstacles, gravity along -y:
+
+    * ``draft_error``: ``|mean(A_sub) / (M / rho) - 1|`` over ``t >= params.settle_time``
+      (default a third of the run), ``A_sub`` the body's area below the still-water level
+      ``L(t) = (V(t) + M / rho) / W`` (the measured water volume spread flat over the tank's
+      width, with the body at its Archimedes draft; exact for a tank with vertical walls);
+      Archimedes: the equilibrium's submerged area is ``M / rho``;
+    * ``heave_period``: the natural (undamped) period of the body's vertical motion, from a
+      damped sinusoid fitted to it until the waves it radiates come back from the walls
+      (:func:`heave_fit`); ``heave_damping`` the fitted damping ratio;
+      ``heave_period_estimate`` ``2 pi sqrt((M + a) / (rho g B))`` with the waterline width
+      ``B`` at equilibrium and the added mass ``a`` of :func:`heave_added_mass`;
+      ``heave_period_error`` their relative difference (an estimate's, see there);
+    * ``energy_growth``: the largest rise of the total energy of fluid and body above its initial
+      value, relative to ``M g |y(0) - y_eq|``; the level set's volume error puts water at the
+      surface or takes it away, whose potential energy ``rho g L dV`` is taken out first.
+      ``energy_loss`` (the same scale): how much was dissipated by the end."""
+    spec = scene.fluid
+    out: dict[str, float] = {}
+    if len(spec.bodies) != 1 or spec.obstacles:
+        return {"draft_error": math.inf}
+    body = spec.bodies[0]
+    rho = spec.density
+    g = _gravity(scene)
+    width = spec.domain[0]
+    t = record.t
+    s = record.series
+    b = _body_series(record, body.name)
+    a_eq = body.mass / rho
+    vol = s["volume"]
+    level = (vol + a_eq) / width
+    settle = float(params.get("settle_time", t[-1] / 3.0))
+    late = t >= settle - 1e-12
+    if not late.any():
+        return {"draft_error": math.inf}
+    a_sub = np.array([submerged_area(body, b["x"][k], b["y"][k], b["angle"][k], level[k])
+                      for k in np.flatnonzero(late)])
+    out["draft_error"] = float(abs(np.mean(a_sub) / a_eq - 1.0))
+    out["submerged_fraction"] = float(np.mean(a_sub) / a_eq * rho * a_eq / body.mass)
+    y_eq = float(np.mean(b["y"][late]))
+    out.update(heave_fit(t, b["y"], y_eq, body, spec, level[0], g))
+    # the estimate: waterline width at the equilibrium (a horizontal chord at the level)
+    from crosscheck.sim.fluid import cutcell
+
+    placed = _placed_at(body, b["x"][-1], y_eq, b["angle"][-1])
+    lo, hi = placed.bounding_box()
+    lvl = float(level[-1])
+    chord = cutcell.solid_length([placed], np.array([[lo[0] - 1.0, lvl]]),
+                                 np.array([[hi[0] + 1.0, lvl]]))[0] * (hi[0] - lo[0] + 2.0)
+    if g > 0 and chord > 0:
+        est = 2 * math.pi * math.sqrt((body.mass + heave_added_mass(rho, chord))
+                                      / (rho * g * chord))
+        out["heave_period_estimate"] = est
+        p = out.get("heave_period", math.nan)
+        out["heave_period_error"] = float(abs(p - est) / est) if math.isfinite(p) else math.inf
+    if "total_energy" in s:
+        e_corr = s["total_energy"] - rho * g * level * (vol - vol[0])
+        scale = body.mass * g * abs(b["y"][0] - y_eq)
+        if scale > 0:
+            out["energy_growth"] = float(max(0.0, np.max(e_corr) - e_corr[0]) / scale)
+            out["energy_loss"] = float((e_corr[0] - e_corr[-1]) / scale)
+    return out
+
+
+def heave_fit(t: np.ndarray, y: np.ndarray, y_eq: float, body: Any, spec: Any, level: float,
+              g: float) -> dict[str, float]:
+    """``y = y_eq + A exp(-z w t) cos(w_d t + phi)`` (``w_d = w sqrt(1 - z^2)``) least-squares
+    fitted to the body's height from release until the first wave it radiates can be back from
+    the nearer wall (``2 (gap) / sqrt(g L)``, the shallow-water speed; at most the run):
+    ``heave_period = 2 pi / w`` (undamped), ``heave_damping = z``. With a 2D body's strong
+    radiation damping (z about 0.2 for a box of beam four times its draft) the crossings of one
+    or two periods are too few for a period; the fit uses every sample of the clean window."""
+    from scipy.optimize import curve_fit
+
+    x0 = float(np.asarray(body.position, float)[0])
+    half = 0.5 * float(np.max(_placed_at(body, x0, y_eq, 0.0).bounding_box()[1]
+                              - _placed_at(body, x0, y_eq, 0.0).bounding_box()[0]))
+    gap = min(x0, spec.domain[0] - x0) - half
+    t_end = min(float(t[-1]), 2.0 * gap / math.sqrt(g * level)) if g > 0 else float(t[-1])
+    use = t <= t_end
+    if np.count_nonzero(use) < 8:
+        return {"heave_period": math.nan}
+    tt, yy = t[use], y[use]
+    a0 = float(yy[0] - y_eq)
+
+    def model(tv, w, z, amp, ph, yc):
+        wd = w * math.sqrt(max(1.0 - z * z, 1e-12))
+        return yc + amp * np.exp(-z * w * tv) * np.cos(wd * tv + ph)
+
+    # the undamped body's frequency as the start (buoyancy stiffness over mass alone)
+    w0 = 2 * math.pi / max(tt[-1], 1e-9) * 2.0
+    best = None
+    for w_start in (w0, 0.5 * w0, 2.0 * w0, 4.0 * w0):
+        try:
+            p, _ = curve_fit(model, tt, yy, p0=[w_start, 0.2, a0, 0.0, y_eq], maxfev=5000)
+        except (RuntimeError, ValueError):
+            continue
+        res = float(np.sum((model(tt, *p) - yy) ** 2))
+        if p[0] > 0 and 0 <= p[1] < 1 and (best is None or res < best[1]):
+            best = (p, res)
+    if best is None:
+        return {"heave_period": math.nan}
+    p = best[0]
+    return {"heave_period": float(2 * math.pi / p[0]), "heave_damping": float(p[1]),
+            "heave_fit_window": t_end,
+            "heave_fit_rms": float(math.sqrt(best[1] / tt.shape[0]) / max(abs(a0), 1e-300))}

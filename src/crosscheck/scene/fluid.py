@@ -178,6 +178,9 @@ class FluidSpec:
     prescribed_velocity: Rotation | None = None
     particles: ParticleSpec = ParticleSpec()
     output: OutputSpec = OutputSpec()
+    #: dynamic bodies coupled with the fluid: the case's ``[[bodies]]`` (``scene.model.Body``,
+    #: per unit depth); empty: no coupling (docs/fluid.md, "Rigid bodies in the fluid")
+    bodies: tuple = ()
 
     @property
     def dimension(self) -> int:
@@ -252,10 +255,13 @@ def _obstacles(f: Fields, dim: int) -> tuple[tuple[Placed, ...], tuple[str, ...]
     return tuple(shapes), tuple(names)
 
 
-def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpec:
+def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
+                bodies: tuple = ()) -> FluidSpec:
     """Read the ``[fluid]`` table of a case (see docs/fluid.md for every key). ``statics``: the
     case's ``[[statics]]`` (``scene.model.Static``), which are obstacles in the fluid after the
-    section's own, under their names."""
+    section's own, under their names. ``bodies``: the case's ``[[bodies]]``
+    (``scene.model.Body``), dynamic bodies coupled with the fluid (checked here: one, inside the
+    domain, clear of its sides and the obstacles)."""
     f = fields
     if dimension != 2:
         raise CaseError(f.file, "case.dimension",
@@ -390,12 +396,14 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpe
     # Cut-cell walls and an inflow need the implicit viscous step: the ghost-fluid Dirichlet
     # condition of a wall a small fraction theta of a cell away has a 1/theta coefficient, which
     # an explicit step would pay for with steps theta times shorter.
-    default_visc = "implicit" if (obstacles or inflow is not None) else "explicit"
+    default_visc = "implicit" if (obstacles or bodies or inflow is not None) else "explicit"
     viscosity_solver = f.string("viscosity_solver", default_visc, choices=VISCOSITY_SOLVERS)
-    if viscosity_solver == "explicit" and obstacles and nu > 0 and no_slip:
+    if viscosity_solver == "explicit" and (obstacles or bodies) and nu > 0 and no_slip:
         raise f.error("viscosity_solver", "\"implicit\" for a viscous no-slip fluid with "
-                      "obstacles (their cut-cell walls need the implicit ghost-fluid stencil)",
-                      viscosity_solver)
+                      "obstacles or bodies (their cut-cell walls need the implicit ghost-fluid "
+                      "stencil)", viscosity_solver)
+    if bodies:
+        _check_bodies(f, bodies, domain, resolution, walls, obstacles, nu, no_slip, prescribed)
     f.done()
     return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
                      inflow=inflow, obstacles=obstacles, obstacle_names=obstacle_names,
@@ -404,4 +412,50 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = ()) -> FluidSpe
                      redistance_every=redistance_every, redistancing=redistancing,
                      pressure_tolerance=ptol,
                      min_volume_fraction=min_vol, prescribed_velocity=prescribed,
-                     particles=particles, output=output)
+                     particles=particles, output=output, bodies=tuple(bodies))
+
+
+#: closest a body may start to a closed side or an obstacle, in cells (the coupled step stops a
+#: run whose body comes within 1.5 cells: there is no contact in the fluid)
+BODY_CLEARANCE_CELLS = 2.0
+
+
+def _check_bodies(f: Fields, bodies: tuple, domain: tuple, resolution: tuple, walls: dict,
+                  obstacles: tuple, nu: float, no_slip: bool, prescribed: Any) -> None:
+    """A fluid case's ``[[bodies]]`` are coupled with the fluid: refuse what the coupled step
+    does not do, naming the body's field."""
+    if len(bodies) > 1:
+        raise CaseError(f.file, "bodies[1]", "at most one [[bodies]] entry in a fluid case (the "
+                        "coupled pressure solve has one body's unknowns for now)",
+                        bodies[1].name)
+    if prescribed is not None:
+        raise f.error("prescribed_velocity", "no prescribed velocity in a case with [[bodies]] "
+                      "(the body needs the fluid's forces)", "a rotation")
+    if nu > 0 and not no_slip:
+        raise f.error("no_slip", "true for a viscous fluid with [[bodies]] (the viscous momentum "
+                      "is exchanged with the body through its no-slip wall)", no_slip)
+    dx = domain[0] / resolution[0]
+    gap = BODY_CLEARANCE_CELLS * dx
+    for k, body in enumerate(bodies):
+        placed = Placed(body.shape, body.position, body.orientation)
+        lo, hi = placed.bounding_box()
+        margins = {"left": lo[0], "right": domain[0] - hi[0], "bottom": lo[1],
+                   "top": domain[1] - hi[1]}
+        for side, m in margins.items():
+            need = gap if walls[side] != "open" else 0.0
+            if m < need:
+                raise CaseError(f.file, f"bodies[{k}].position",
+                                f"a pose that keeps the body inside fluid.domain and at least "
+                                f"{BODY_CLEARANCE_CELLS:g} cells ({need:.4g} m) from its "
+                                f"{side} side (there is no contact between a body and solids "
+                                f"in the fluid); its {side} edge is {m:.4g} m away",
+                                [float(v) for v in body.position])
+        for name_k, obstacle in enumerate(obstacles):
+            olo, ohi = obstacle.bounding_box()
+            sep = float(np.max(np.maximum(olo - hi, lo - ohi)))
+            if sep < gap:
+                raise CaseError(f.file, f"bodies[{k}].position",
+                                f"a pose at least {BODY_CLEARANCE_CELLS:g} cells ({gap:.4g} m) "
+                                f"from every obstacle (bounding boxes; there is no contact in "
+                                f"the fluid); obstacle {name_k} is {sep:.4g} m away",
+                                [float(v) for v in body.position])

@@ -152,7 +152,9 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     fluid = None
     if has_fluid:
         # after the statics: in a fluid case they are obstacles in the fluid
-        fluid = _fluid(top.sub("fluid"), dimension, statics)
+        fluid = _fluid(top.sub("fluid"), dimension, statics, bodies)
+        if bodies:
+            _check_fluid_effects(file, effects)
     pair_overrides = parse_pair_overrides(top.table_list("contact_pairs", []), names,
                                           static_names, ground is not None, dimension)
     reference = _reference(top.sub("reference", {}), unchecked, base_dir, dimension=dimension,
@@ -169,11 +171,27 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     )
 
 
-def _fluid(fields: Fields, dimension: int, statics: tuple = ()) -> Any:
+def _fluid(fields: Fields, dimension: int, statics: tuple = (), bodies: tuple = ()) -> Any:
     # The fluid section has its own parser beside the solver that understands it.
     from crosscheck.scene.fluid import parse_fluid
 
-    return parse_fluid(fields, dimension, statics)
+    return parse_fluid(fields, dimension, statics, bodies)
+
+
+def _check_fluid_effects(file: Path, effects: Effects) -> None:
+    """A body in a fluid moves under gravity and the fluid's forces only: the coupled fluid step
+    applies no springs, drag or loads (and has no contact), so a case must not declare them."""
+    for key, present in (("springs", effects.springs), ("drag", effects.drag),
+                         ("loads", effects.loads), ("contact", effects.contact)):
+        if present:
+            raise CaseError(file, f"effects.{key}", "none in a fluid case with [[bodies]] (the "
+                            "body moves under gravity and the fluid's forces only)", key)
+    g = effects.gravity
+    if g is not None and g[0] != 0.0:
+        # the hydrostatic part of the body's force is taken at the water level beside the body,
+        # measured up the grid's columns (sim/fluid/coupling.py)
+        raise CaseError(file, "effects.gravity", "gravity along -y (or none) in a fluid case "
+                        "with [[bodies]]", g.tolist())
 
 
 # -- sections -------------------------------------------------------------------------------------

@@ -46,6 +46,11 @@ from crosscheck.sim.fluid.pressure import SOLID
 SIDES = ("left", "right", "bottom", "top")
 
 
+class SolidStop(Exception):
+    """A moving solid left what the step can handle (a coupled body touching a wall, leaving
+    the domain): the run stops there with this reason (failure is data)."""
+
+
 @dataclass(frozen=True, eq=False)
 class SolidBoundary:
     cells: np.ndarray

@@ -280,8 +280,17 @@ def extend(q, state, phif, order):
 
 @njit(cache=True)
 def fill_solid(phi, solid, sweeps):
-    """Extrapolate the level set into obstacle cells (average of non-solid neighbours, layer by
-    layer) so that redistancing does not see a fake free surface along every obstacle."""
+    """Extrapolate the level set into obstacle cells, layer by layer, so that redistancing and
+    the pressure's ghost fluid do not see a fake free surface along every obstacle: each cell of
+    a new layer takes the mean over its known neighbours of the linear extrapolation from that
+    neighbour and the next known cell beyond it along the same grid line (``2 phi_nb -
+    phi_nb2``), or the neighbour's value where there is none beyond.
+
+    The mean of the neighbours' values (what this did before) is biased by half a cell where the
+    surface meets a sloping wall (the neighbours below a waterline cell are deeper): a circle or
+    a turned box piercing the surface of a tank at rest drove currents of 0.15 to 0.22 m/s and
+    gained 0.3 to 2 % of the water in 3 s (128 x 32); extrapolated, they stay at rest (5e-8 m/s,
+    volume 1e-11), as a grid-aligned box did already."""
     nx, ny = phi.shape
     done = ~solid
     for _ in range(sweeps):
@@ -293,12 +302,20 @@ def fill_solid(phi, solid, sweeps):
                 s = 0.0
                 c = 0
                 for d in range(4):
-                    a = i + (1 if d == 0 else (-1 if d == 1 else 0))
-                    b = j + (1 if d == 2 else (-1 if d == 3 else 0))
+                    di = 1 if d == 0 else (-1 if d == 1 else 0)
+                    dj = 1 if d == 2 else (-1 if d == 3 else 0)
+                    a = i + di
+                    b = j + dj
                     if 0 <= a < nx and 0 <= b < ny and done[a, b]:
-                        s += phi[a, b]
+                        a2 = a + di
+                        b2 = b + dj
+                        if 0 <= a2 < nx and 0 <= b2 < ny and done[a2, b2]:
+                            s += 2.0 * phi[a, b] - phi[a2, b2]
+                        else:
+                            s += phi[a, b]
                         c += 1
                 if c > 0:
+                    # only cells of earlier layers are read, so writing in place is safe
                     phi[i, j] = s / c
                     new[i, j] = True
         done = new
@@ -517,3 +534,41 @@ def convection(up, vp, ustate, vstate, dx, nu_out, nv_out):
             ue = 0.5 * (up[i + 1, j] + up[i + 1, j + 1])
             uw = 0.5 * (up[i, j] + up[i, j + 1])
             nv_out[i, j] = ((ue * ve - uw * vw) + (vn * vn - vs * vs)) * inv
+
+
+@njit(cache=True)
+def fluid_moments(phi, open_area, dx, sub):
+    """Area of the fluid (as ``fluid_area_weighted``) and its first moments ``integral of x`` and
+    ``integral of y`` (m^2, m^3 per unit depth): the fluid's potential energy in a coupled run."""
+    nx, ny = phi.shape
+    inv_dx = 1.0 / dx
+    h = dx / sub
+    area = 0.0
+    mx = 0.0
+    my = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            w = open_area[i, j]
+            if w <= 0.0:
+                continue
+            f = phi[i, j]
+            if f >= 0.75 * dx:
+                continue
+            if f <= -0.75 * dx:
+                a = dx * dx * w
+                area += a
+                mx += a * (i + 0.5) * dx
+                my += a * (j + 0.5) * dx
+                continue
+            for s in range(sub):
+                for t in range(sub):
+                    x = (i + (s + 0.5) / sub) * dx
+                    y = (j + (t + 0.5) / sub) * dx
+                    ps = sample(phi, -0.5, -0.5, x, y, inv_dx)[0]
+                    fr = 0.5 - ps / h
+                    fr = 0.0 if fr < 0.0 else (1.0 if fr > 1.0 else fr)
+                    a = dx * dx * w * fr / (sub * sub)
+                    area += a
+                    mx += a * x
+                    my += a * y
+    return area, mx, my

@@ -376,3 +376,108 @@ def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
     scatter(index, x, p_guess)
     apply_pressure(p_guess, phi, u, v, ustate, vstate)
     return its, n, bmax
+
+
+# -- two-way coupling with a rigid body (coupling.py) ------------------------------------------
+@njit(cache=True)
+def _matvec_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, x, out):
+    """``(A + J D J^T) x``: the weighted Poisson matrix plus the body's rank-3 term (``jk`` the
+    unknowns the body's rows touch, ``jv`` their rows of J, ``dinv`` D's diagonal)."""
+    _matvec(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, x, out)
+    y0 = 0.0
+    y1 = 0.0
+    y2 = 0.0
+    for m in range(jk.shape[0]):
+        xv = x[jk[m]]
+        y0 += jv[m, 0] * xv
+        y1 += jv[m, 1] * xv
+        y2 += jv[m, 2] * xv
+    y0 *= dinv[0]
+    y1 *= dinv[1]
+    y2 *= dinv[2]
+    for m in range(jk.shape[0]):
+        out[jk[m]] += jv[m, 0] * y0 + jv[m, 1] * y1 + jv[m, 2] * y2
+
+
+@njit(cache=True)
+def pcg_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, b, x, tol, max_iter):
+    """``pcg`` on ``A + J D J^T`` (symmetric positive (semi)definite), preconditioned by the
+    MIC(0) factor of ``A`` alone: the body's term has rank 3, which costs CG at most three
+    iterations more in exact arithmetic."""
+    n = b.shape[0]
+    if n == 0:
+        return 0
+    r = np.empty(n)
+    _matvec_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, x, r)
+    for k in range(n):
+        r[k] = b[k] - r[k]
+    if _absmax(r) <= tol:
+        return 0
+    prec = mic0(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+    q = np.empty(n)
+    z = np.empty(n)
+    _apply_mic(prec, xm, xp, ym, yp, wxm, wxp, wym, wyp, r, q, z)
+    s = z.copy()
+    sigma = _dot(r, z)
+    As = np.empty(n)
+    for it in range(max_iter):
+        _matvec_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, s, As)
+        alpha = sigma / _dot(s, As)
+        for k in range(n):
+            x[k] += alpha * s[k]
+            r[k] -= alpha * As[k]
+        if _absmax(r) <= tol:
+            return it + 1
+        _apply_mic(prec, xm, xp, ym, yp, wxm, wxp, wym, wyp, r, q, z)
+        sigma_new = _dot(r, z)
+        beta = sigma_new / sigma
+        sigma = sigma_new
+        for k in range(n):
+            s[k] = z[k] + beta * s[k]
+    return -1
+
+
+@njit(cache=True)
+def _body_response(jk, jv, dinv, x):
+    """``D J^T x``: the change of the body's (vx, vy, omega) the pressure ``x`` makes."""
+    out = np.zeros(3)
+    for m in range(jk.shape[0]):
+        xv = x[jk[m]]
+        out[0] += jv[m, 0] * xv
+        out[1] += jv[m, 1] * xv
+        out[2] += jv[m, 2] * xv
+    for c in range(3):
+        out[c] *= dinv[c]
+    return out
+
+
+def project_coupled(phi, bnd, u, v, ustate, vstate, p_guess, tol, coupling, max_iter=2000):
+    """``project`` with the coupled body's velocity as unknowns (Batty, Bertails and Bridson
+    2007; coupling.py): the solid faces and samples of the body carry its predicted velocity
+    ``V*`` (so the right-hand side is ``-div*``), the matrix gains ``J D J^T``, and after the
+    solve the body's velocity gains ``D J^T pt`` (``coupling.apply_impulse``). Returns
+    (iterations, fluid cell count, largest |divergence| residual before the solve)."""
+    (index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b,
+     n_dir) = build_system(phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
+    n = diag.shape[0]
+    if n == 0:
+        p_guess[:] = 0.0
+        return 0, 0, 0.0
+    if n_dir == 0:
+        # enclosed: as in project (the body's term keeps the constant in the null space: the
+        # body's flux through a closed surface sums to zero, J^T 1 = 0)
+        diag[0] += 1.0
+    jk, jv, dinv = coupling.rows(index)
+    # the hydrostatic part of the body's force, exactly (coupling.hydrostatic): a known change
+    # of V*, so the divergence the solve removes changes by J dv
+    dv = coupling.hydrostatic(phi, jv, dinv)
+    coupling.apply_impulse(dv)
+    b[jk] -= jv @ dv
+    x = gather(index, p_guess, n)
+    bmax = float(np.max(np.abs(b)))
+    its = pcg_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, b, x,
+                      max(tol * bmax, 1e-13), max_iter)
+    scatter(index, x, p_guess)
+    apply_pressure(p_guess, phi, u, v, ustate, vstate)
+    coupling.apply_impulse(_body_response(jk, jv, dinv, x))
+    return its, n, bmax

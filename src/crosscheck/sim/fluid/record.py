@@ -4,7 +4,11 @@ Layout of the ``.npz`` (all keys plain arrays, no pickling):
 
 * ``t`` (T,): sample times of the scalar series, s;
 * ``series.<name>`` (T,): scalar series: ``volume`` (m^2 per unit depth), ``kinetic_energy``
-  (J/m), ``max_speed`` (m/s), ``front`` (m), ``surface_height`` (m), ``dt`` (s), ...;
+  (J/m), ``max_speed`` (m/s), ``front`` (m), ``surface_height`` (m), ``dt`` (s), ...; with a
+  coupled body ``body_x.<name>``, ``body_y.<name>``, ``body_angle.<name>``, ``body_vx.<name>``,
+  ``body_vy.<name>``, ``body_omega.<name>`` (centre of mass, world frame), the fluid's force and
+  moment on it ``body_force_x.<name>``, ``body_force_y.<name>``, ``body_torque.<name>``, and
+  ``body_energy``, ``potential_energy`` (the fluid's), ``total_energy`` (J/m);
 * ``field_t`` (F,): times of the field snapshots, s;
 * ``field.<name>`` (F, ...), float32: ``u`` (F, nx+1, ny) x-face velocity (m/s), ``v``
   (F, nx, ny+1), ``phi`` (F, nx, ny) level set at cell centres (m), ``p`` (F, nx, ny) pressure (Pa);

@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from crosscheck.errors import StepFailure
+from crosscheck.sim.fluid.boundary import SolidStop
 from crosscheck.sim.fluid.record import FluidRecord
 from crosscheck.sim.fluid.solver import (
     DEFAULT_INTEGRATOR,
@@ -106,7 +107,10 @@ class FluidRun:
         """One step; returns (h, reason the fluid was lost or None)."""
         h = self._step_size()
         st, spec = self.st, self.spec
-        info = st.step(h, self.timers)
+        try:
+            info = st.step(h, self.timers)
+        except SolidStop as exc:
+            raise FluidStop(self.time, str(exc)) from exc
         self.time += h
         self.dts.append(h)
         self.iters.append(info["iterations"])
@@ -236,8 +240,28 @@ class FluidRun:
             "particles": st.particles is not None,
             "threads": fluid_threads(),
             "redistancing": spec.redistancing,
-            "warnings": [w for w in (st.lid_warning,) if w],
+            "warnings": [w for w in (st.lid_warning, self._viscous_warning()) if w],
+            **self._coupling_meta(),
         }
+
+    def _coupling_meta(self) -> dict[str, Any]:
+        c = self.st.coupling
+        if c is None:
+            return {}
+        b = c.body
+        return {"bodies": [{"name": b.name, "mass": b.mass, "inertia": b.inertia,
+                            "com_body": b.com_body.tolist(), "mass_per": "metre of depth"}],
+                "coupling": {"method": "variational pressure solve with the body's velocity "
+                                       "as unknowns (Batty, Bertails and Bridson 2007)",
+                             "viscous_exchange_number_max": c.viscous_number}}
+
+    def _viscous_warning(self) -> str | None:
+        c = self.st.coupling
+        if c is not None and c.viscous_number > 0.5:
+            return (f"the explicit viscous exchange with the body reached rho nu dt "
+                    f"sum(1/theta) / M = {c.viscous_number:.3g} (stable well below 1): "
+                    "take a shorter step or a heavier body")
+        return None
 
     def close(self) -> None:
         pass

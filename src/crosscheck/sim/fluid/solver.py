@@ -38,7 +38,13 @@ from crosscheck.sim.fluid.boundary import (
 )
 from crosscheck.sim.fluid.forces import ForceProbe
 from crosscheck.sim.fluid.particles import Particles
-from crosscheck.sim.fluid.pressure import apply_pressure, classify_faces, project
+from crosscheck.sim.fluid.pressure import (
+    apply_pressure,
+    classify_faces,
+    project,
+    project_coupled,
+)
+from crosscheck.sim.fluid.viscosity import THETA_MIN as VISCOUS_THETA_MIN
 from crosscheck.sim.fluid.viscosity import diffuse_implicit
 
 
@@ -97,6 +103,16 @@ class FluidState:
         # the scene's obstacles at rest; step() takes another boundary when the solid moves
         self.static_boundary = static_boundary(spec, self.centres)
         self.boundary = self.static_boundary   # the one of the last step (measurements read it)
+        # a dynamic body (two-way coupling): only built when the case declares one, so a fluid
+        # without bodies runs none of it (issue 14, point 5)
+        self.coupling = None
+        if spec.bodies:
+            from crosscheck.sim.fluid.coupling import Coupling
+
+            self.coupling = Coupling(spec.bodies, self.static_boundary, self.nx, self.ny,
+                                     self.dx, spec.density, self.gravity,
+                                     spec.has_surface)
+            self.boundary = self.coupling.build()
 
         # ghost-row coefficients (ghost = a * interior + c) for tangential velocity at each side
         def ghost(side: str) -> tuple[float, float]:
@@ -156,7 +172,10 @@ class FluidState:
         # starts from the previous pressure gradient and projects with the increment, so a steady
         # state does not depend on the step and the no-slip walls hold after the projection
         self.implicit = spec.viscosity_solver == "implicit"
-        self.incremental = self.implicit and spec.kinematic_viscosity > 0.0
+        # (not with a coupled body: the previous pressure's force on the body would have to be
+        # applied with the geometry of the new step; the plain projection needs none of that)
+        self.incremental = (self.implicit and spec.kinematic_viscosity > 0.0
+                            and self.coupling is None)
         self.p_increment = np.zeros((self.nx, self.ny))
         self.no_dist = np.zeros((1, 1))
         # the central scheme: Eulerian convection, Adams-Bashforth 2 with the previous step's term
@@ -166,6 +185,10 @@ class FluidState:
         if scheme.advection == "central" and self.has_surface:
             self.unsupported = ("the central scheme has no free surface (it convects the "
                                 "velocity only); use semi_lagrangian or maccormack")
+        elif self.coupling is not None and scheme.advection == "central":
+            self.unsupported = ("the central scheme with a moving body is not implemented (its "
+                                "Adams-Bashforth history lives on faces the body moves "
+                                "across); use semi_lagrangian or maccormack")
         self.forces = None
         if spec.output.forces.enabled:
             b = self.static_boundary
@@ -223,7 +246,13 @@ class FluidState:
         measurements after it."""
         spec = self.spec
         dx = self.dx
-        if solid is None:
+        coupling = self.coupling
+        if solid is None and coupling is not None:
+            tc = time.perf_counter()
+            solid = coupling.begin_step(dt)     # the body moves, its boundary is rebuilt
+            # a phase of its own, in coupled runs only (the others' timers are unchanged)
+            timers["coupling"] = timers.get("coupling", 0.0) + time.perf_counter() - tc
+        elif solid is None:
             solid = self._ramped(self.static_boundary, self.time + dt)
         bnd = self.boundary = solid
         t0 = time.perf_counter()
@@ -290,6 +319,8 @@ class FluidState:
                 un += g[0] * dt
             if g[1] != 0.0:
                 vn += g[1] * dt
+            if coupling is not None:
+                coupling.predict(dt)            # gravity on the body: V* on its faces
             self.classify()
             impose(un, vn, self.ustate, self.vstate, bnd)   # before viscosity: its wall velocity
             nu = spec.kinematic_viscosity
@@ -311,6 +342,8 @@ class FluidState:
                         + diffuse_implicit(vn, self.vstate, bnd.v_dist if walls else None,
                                            bnd.v_solid, k_total, 1, self.gv,
                                            self.v if cn else None))
+                    if coupling is not None and walls:
+                        coupling.viscous_exchange(un, vn, nu, dt, VISCOUS_THETA_MIN)
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):
@@ -320,7 +353,14 @@ class FluidState:
             t3 = time.perf_counter()
             timers["forces"] += t3 - t2
 
-            if self.incremental:
+            if coupling is not None:
+                pt = self.p * scale
+                its, _, _ = project_coupled(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
+                                            spec.pressure_tolerance, coupling)
+                self.p = pt / scale
+                impose(un, vn, self.ustate, self.vstate, bnd)   # the body's new velocity
+                coupling.finish(dt)
+            elif self.incremental:
                 # the increment (it vanishes in a steady state), warm-started from the last one
                 pt = self.p_increment * scale
                 its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
@@ -439,6 +479,14 @@ class FluidState:
             out["volume"] = float(np.count_nonzero(~solid)) * dx * dx
         if self.particles is not None:
             out["particles"] = float(self.particles.count)
+        if self.coupling is not None:
+            out.update(self.coupling.measure())
+            # the audit of fluid plus body: the fluid's potential energy, -rho g . integral of x
+            area, mx, my = K.fluid_moments(self.phi, self.boundary.fluid_area, dx, 4)
+            g = self.gravity
+            out["potential_energy"] = float(-self.spec.density * (g[0] * mx + g[1] * my))
+            out["total_energy"] = (out["kinetic_energy"] + out["potential_energy"]
+                                   + out["body_energy"])
         if self.forces is not None:
             spec = self.spec
             for name, (fx, fy) in self.forces.forces(self.u, self.v, self.p, spec.density,

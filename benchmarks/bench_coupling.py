@@ -1,0 +1,132 @@
+"""Cost of the coupled step (issue 14, point 6): a floating box against the same tank with the
+box as a fixed obstacle and with no box, at 128^2 and 256^2, in a sloshing tank.
+
+    PYTHONPATH=src .venv/bin/python benchmarks/bench_coupling.py [--repeats 3] [--sizes 128 256]
+
+The scene is ``cases/fluid/floating_box.toml``'s box (0.2 x 0.1 m, density 500, released 0.01 m
+above its draft) in a square tank 1 m wide, water 0.5 m deep with its first sloshing mode
+(amplitude 0.02 m) so that every variant's fluid moves (a tank at rest converges its pressure in
+one CG iteration, which would compare a moving fluid's solve with none), run for 1 s, the
+resolution overridden. Three variants at each grid, the same steps where the CFL allows:
+
+* ``coupled``: the box is a ``[[bodies]]`` entry (two-way coupling);
+* ``obstacle``: the box at its release pose as a fixed obstacle (cut cells, no coupling): the
+  uncoupled step at the same resolution with the same solid in the water;
+* ``none``: the tank alone.
+
+Wall time per step is the stepping time the fluid run measures (recording excluded), split into
+its phases (``coupling``: the body's move and its cut cells, in coupled runs only); best of
+``--repeats`` runs after a warm-up (the machine is shared: the minimum is the least disturbed),
+median beside it. Writes ``benchmarks/results/coupling.{json,md}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+from pathlib import Path
+
+from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid import run_fluid
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results"
+
+BODY = """
+[[bodies]]
+name = "box"
+shape = { box = { size = [0.2, 0.1] } }
+density = 500.0
+position = [0.5, 0.51]
+"""
+OBSTACLE = 'obstacles = [{ box = { center = [0.5, 0.51], size = [0.2, 0.1] } }]'
+
+
+def scene(variant: str, n: int):
+    text = f"""
+[case]
+name = "bench-coupling-{variant}"
+dimension = 2
+[run]
+duration = 1.0
+dt = 0.005
+sample_every = 0.05
+[effects]
+gravity = [0.0, -9.81]
+{BODY if variant == "coupled" else ""}
+[fluid]
+domain = [1.0, 1.0]
+resolution = [{n}, {n}]
+walls = {{ top = "open" }}
+initial = [{{ layer = {{ depth = 0.5, amplitude = 0.02, wavelength = 2.0 }} }}]
+{OBSTACLE if variant == "obstacle" else ""}
+"""
+    return load_case_text(text, f"bench-{variant}.toml")
+
+
+def run_once(variant: str, n: int) -> dict:
+    rec = run_fluid(scene(variant, n), "semi_lagrangian")
+    m = rec.meta
+    return {"ms_per_step": m["ms_per_step"], "phases": m["ms_per_step_phases"],
+            "steps": m["dt"]["steps"],
+            "pressure_iterations_mean": m["pressure_iterations"]["mean"],
+            "failure": rec.failure}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args()
+    for v in ("coupled", "obstacle", "none"):      # warm-up: load or compile the kernels
+        run_once(v, 32)
+    results = []
+    for n in args.sizes:
+        row = {"n": n}
+        for v in ("coupled", "obstacle", "none"):
+            runs = [run_once(v, n) for _ in range(args.repeats)]
+            best = min(runs, key=lambda r: r["ms_per_step"])
+            best["median_ms_per_step"] = statistics.median(r["ms_per_step"] for r in runs)
+            row[v] = best
+            print(n, v, f"{best['ms_per_step']:.3f} ms/step (median "
+                  f"{best['median_ms_per_step']:.3f}), steps {best['steps']}, CG "
+                  f"{best['pressure_iterations_mean']:.1f}",
+                  {k: round(x, 3) for k, x in best["phases"].items()}, flush=True)
+        row["ratio_to_obstacle"] = row["coupled"]["ms_per_step"] / row["obstacle"]["ms_per_step"]
+        row["ratio_to_none"] = row["coupled"]["ms_per_step"] / row["none"]["ms_per_step"]
+        results.append(row)
+    doc = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
+                       "load_average": os.getloadavg()},
+           "repeats": args.repeats, "results": results}
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "coupling.json").write_text(json.dumps(doc, indent=1, default=str))
+    (args.out / "coupling.md").write_text(markdown(doc))
+    print(markdown(doc))
+
+
+def markdown(doc: dict) -> str:
+    phases = ("advection", "redistancing", "forces", "projection", "extension", "coupling")
+    lines = ["# Coupled step cost (benchmarks/bench_coupling.py)", "",
+             f"Load average at the end: {doc['machine']['load_average']}; best of "
+             f"{doc['repeats']} runs (median in coupling.json), one thread.", "",
+             "| grid | variant | ms/step | " + " | ".join(phases) + " | CG its | steps |",
+             "|---|---|---|" + "---|" * len(phases) + "---|---|"]
+    for row in doc["results"]:
+        for v in ("coupled", "obstacle", "none"):
+            r = row[v]
+            ph = " | ".join(f"{r['phases'].get(p, 0.0):.3f}" for p in phases)
+            lines.append(f"| {row['n']}^2 | {v} | {r['ms_per_step']:.3f} | {ph} | "
+                         f"{r['pressure_iterations_mean']:.1f} | {r['steps']} |")
+    lines.append("")
+    for row in doc["results"]:
+        lines.append(f"* {row['n']}^2: coupled / obstacle = {row['ratio_to_obstacle']:.2f}, "
+                     f"coupled / no body = {row['ratio_to_none']:.2f}")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,442 @@
+"""Two-way coupling of a rigid body with the fluid (issue 14, points 3 and 5): the moving body's
+cut cells, the coupled projection (the body's velocity as unknowns of the pressure solve), the
+floating box against Archimedes and its heave period, volume and energy, the case format's
+refusals, and that only what a case declares runs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from crosscheck.compare.fluid_metrics import fluid_metrics
+from crosscheck.errors import CaseError
+from crosscheck.scene.loader import load_case_text
+from crosscheck.scene.shapes import Box, Circle, Placed, Polygon
+from crosscheck.sim.fluid import bodygeom, cutcell
+from crosscheck.sim.fluid.run import FluidRun
+from crosscheck.sim.fluid.solver import INTEGRATORS, PHASES, FluidState
+
+
+def _case(body: str, fluid: str, effects: str = 'gravity = [0.0, -9.81]',
+          duration: float = 0.1, dt: float = 0.005, extra: str = ""):
+    text = f"""
+[case]
+name = "t"
+dimension = 2
+[run]
+duration = {duration}
+dt = {dt}
+sample_every = {dt}
+[effects]
+{effects}
+{body}
+[fluid]
+{fluid}
+{extra}
+"""
+    return load_case_text(text, "t.toml")
+
+
+BOX = """
+[[bodies]]
+name = "box"
+shape = { box = { size = [0.2, 0.1] } }
+density = 500.0
+position = [0.5, %s]
+"""
+TANK = """
+domain = [1.0, 0.5]
+resolution = [64, 32]
+walls = { top = "open" }
+initial = [{ layer = { depth = 0.25 } }]
+"""
+
+
+# -- geometry ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("placed", [
+    Placed(Circle(0.23), (0.51, 0.47)),
+    Placed(Box((0.3, 0.17)), (0.5, 0.45), 0.3),
+    Placed(Polygon(np.array([[0.0, 0.0], [0.3, 0.05], [0.1, 0.25]])), (0.31, 0.4), 0.7),
+])
+def test_moving_body_geometry_is_the_cut_cells_of_cutcell(placed):
+    """The compiled closed forms (bodygeom) give what the generic cut-cell code gives: face
+    fractions and distances to round-off, cell areas exactly for polygons and to 1e-9 of a cell
+    for a circle (16 Gauss points per piece in both)."""
+    n, dx = 40, 1.0 / 40
+    kind, c, r, verts = bodygeom.shape_params(placed)
+    uf, vf, um, vm, ud, vd, cd, area = bodygeom.window_geometry(kind, c, r, verts, 0, 0, n, n, dx,
+                                                        bodygeom.GAUSS_S, bodygeom.GAUSS_W)
+    uf2, vf2 = cutcell.face_fractions([placed], n, n, dx)
+    pu, pv, pc = cutcell.sample_points(n, n, dx)
+    assert np.max(np.abs(uf - uf2)) < 1e-12 and np.max(np.abs(vf - vf2)) < 1e-12
+    assert np.max(np.abs(ud - placed.signed_distance(pu))) < 1e-14
+    assert np.max(np.abs(vd - placed.signed_distance(pv))) < 1e-14
+    assert np.max(np.abs(cd - placed.signed_distance(pc))) < 1e-14
+    area2 = cutcell.cell_solid_fractions([placed], n, n, dx)
+    assert np.max(np.abs(area - area2)) < 1e-9
+    assert area.sum() * dx * dx == pytest.approx(cutcell.shape_area(placed), rel=1e-9)
+
+
+def test_submerged_area_and_centroid_are_exact():
+    # a half-immersed disc: area pi R^2 / 2, centroid 4 R / (3 pi) below the centre
+    kind, c, r, v = bodygeom.shape_params(Placed(Circle(0.1), (0.5, 0.3)))
+    a, cen = bodygeom.submerged(kind, c, r, v, np.array([0.0, 1.0]), 0.3)
+    assert a == pytest.approx(math.pi * 0.01 / 2, rel=1e-13)
+    assert cen[1] == pytest.approx(0.3 - 0.4 / (3 * math.pi), rel=1e-13)
+    # a box turned by 45 degrees, immersed to its centre: half its area, centroid on the axis
+    kind, c, r, v = bodygeom.shape_params(Placed(Box((0.2, 0.2)), (0.5, 0.3), math.pi / 4))
+    a, cen = bodygeom.submerged(kind, c, r, v, np.array([0.0, 1.0]), 0.3)
+    assert a == pytest.approx(0.02, rel=1e-13)
+    assert cen[0] == pytest.approx(0.5, abs=1e-14)
+
+
+# -- the coupled projection --------------------------------------------------------------------
+def _weighted_divergence(st):
+    b = st.boundary
+    fu = (1 - b.u_frac) * st.u + b.u_frac * b.u_solid
+    fv = (1 - b.v_frac) * st.v + b.v_frac * b.v_solid
+    return fu[1:] - fu[:-1] + fv[:, 1:] - fv[:, :-1]
+
+
+def test_coupled_projection_added_mass_of_a_cylinder_and_momentum():
+    """A disc moving at V0 through water at rest in a closed box, no gravity: one coupled
+    projection leaves the fluid divergence free with the body's new velocity on its faces; the
+    body keeps ``M / (M + m_a)`` of its velocity, with the potential-flow added mass of a
+    circular cylinder ``m_a = rho pi R^2`` (Lamb, Hydrodynamics, sec. 92) increased by the walls
+    (a cylinder on the axis of a square box of side 10 R: +2 % in the image-sum estimate
+    ``1 + 2 (R / h)^2 pi^2 / 3`` with h the wall distance... bounded here by 4 %); the total
+    momentum in a closed container is ``(M - rho A) V`` (the fluid moves back as the body
+    displaces it: sum over the faces of open-fraction times velocity plus the body's flux
+    vanishes, the discrete identity of a divergence-free field in a closed box)."""
+    r = 0.1
+    scene = _case(f"""
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {r} }} }}
+density = 1000.0
+position = [0.5, 0.5]
+velocity = [0.2, 0.0]
+""", """
+domain = [1.0, 1.0]
+resolution = [64, 64]
+""", effects="", duration=0.001, dt=0.001)
+    st = FluidState(scene.fluid, np.zeros(2), INTEGRATORS["semi_lagrangian"])
+    timers = {p: 0.0 for p in PHASES}
+    st.step(0.001, timers)
+    body = st.coupling.body
+    m = body.mass
+    ma = 1000.0 * math.pi * r * r
+    ratio = body.v[0] / 0.2
+    assert ratio == pytest.approx(m / (m + ma), rel=0.04)
+    assert ratio < m / (m + ma)                  # the walls add to the added mass
+    assert abs(body.v[1]) < 1e-6 * 0.2 and abs(body.omega) < 1e-6   # CG tolerance 1e-6
+    div = _weighted_divergence(st)
+    fluid = ~st.boundary.cells
+    assert np.max(np.abs(div[fluid])) < 1e-6 * 0.2
+    b = st.boundary
+    flux_x = np.sum((1 - b.u_frac) * st.u + b.u_frac * b.u_solid)
+    assert abs(flux_x) < 1e-6 * 0.2 * 64
+    # so the fluid's momentum (open fractions times velocities) is minus the displaced water's:
+    # the total is (M - rho A) V, A the body's area on the faces (interior ones: the sides
+    # of the box are closed faces too)
+    area = np.sum(b.u_frac[1:-1]) * st.dx ** 2     # the midpoint rule of the disc's area
+    assert area == pytest.approx(math.pi * r * r, rel=0.02)
+    p_fluid = 1000.0 * st.dx ** 2 * np.sum((1 - b.u_frac) * st.u)
+    assert p_fluid + m * body.v[0] == pytest.approx((m - 1000.0 * area) * body.v[0],
+                                                    abs=1e-6 * m * 0.2)
+
+
+# -- floating ------------------------------------------------------------------------------------
+def test_box_at_its_archimedes_draft_stays_there():
+    # box 0.2 x 0.1 of density 500: draft 0.05 m; the layer (0.25 m) with the box in it leaves
+    # the water level at 0.25 m, so the box's centre belongs at 0.25 m
+    scene = _case(BOX % "0.25", TANK, duration=0.5)
+    run = FluidRun(scene, "semi_lagrangian")
+    rec = run.record()
+    assert rec.failure is None
+    y = rec.series["body_y.box"]
+    assert np.max(np.abs(y - 0.25)) < 1e-9
+    assert np.max(np.abs(rec.series["body_vy.box"])) < 1e-8
+    assert np.max(rec.series["max_speed"]) < 1e-6
+
+
+def test_floating_box_case(runs):
+    """The case file: released 0.01 m above its draft (a fifth of it), the box heaves about its
+    Archimedes draft (mean submerged area over the last two thirds within 1 % of M / rho: 0.74 %
+    measured at this grid, 0.57 and 0.69 % at half and twice the resolution, i.e. the residual
+    is the heave's nonlinearity and the waves' mean, not the grid: a 1 % draft error is
+    0.03 cells of the 3.2-cell draft), its natural period within 10 % of the estimate with the
+    high-frequency added mass (5.1 % measured; 2.4 and 3.2 % at half and twice), volume within
+    1e-3 (1e-5 measured), and its energy with the level set's volume error taken out never
+    grows by more than 5 % of ``M g`` times its release height (2.3 % measured)."""
+    scene, rec = runs("floating_box", "semi_lagrangian")
+    assert rec.failure is None
+    m = fluid_metrics(scene, rec)
+    assert m["draft_error"] < 0.01
+    assert m["heave_period_error"] < 0.10
+    assert 0.1 < m["heave_damping"] < 0.35        # strong radiation damping of a flat box
+    assert m["volume_change"] < 1e-3
+    assert m["energy_growth"] < 0.05
+    assert np.max(np.abs(rec.series["body_angle.box"])) < 1e-6   # heave does not roll it
+    assert abs(rec.series["body_x.box"][-1] - 1.0) < 1e-6
+    for name in ("draft_error", "heave_period_error", "volume_change", "energy_growth"):
+        assert m[name] <= scene.tolerances[name].limit("inhouse", "semi_lagrangian")
+
+
+def test_tilted_box_rolls_back():
+    """A box stable by its metacentric height (GM = 0.042 m) tilted by 1e-4 rad rolls back and
+    forth instead of capsizing: the restoring moment of the hydrostatic pressure is Archimedes'
+    exact one (coupling.Coupling.hydrostatic); with the cell-centred pressure alone the angle
+    grew from round-off to 6e-3 rad in 3 s."""
+    scene = _case(BOX % "0.254" + "orientation = 0.0001\n", TANK, duration=1.0)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    ang = rec.series["body_angle.box"]
+    assert np.max(np.abs(ang)) < 2e-4
+    assert np.min(ang) < -3e-5 and np.max(ang[len(ang) // 2:]) > 3e-5   # it oscillates
+
+
+def test_disc_sinking_in_a_closed_box_loses_energy():
+    """A disc twice as dense as the water sinking in a closed box (no free surface): the total
+    energy of fluid and body (kinetic, potential of both) never grows (semi-Lagrangian
+    advection and the projection only take energy out) and the body's kinetic energy is
+    well below what it would have falling in vacuum."""
+    scene = _case("""
+[[bodies]]
+name = "disc"
+shape = { circle = { radius = 0.05 } }
+density = 2000.0
+position = [0.5, 0.7]
+""", """
+domain = [1.0, 1.0]
+resolution = [48, 48]
+""", duration=0.3, dt=0.005)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    e = rec.series["total_energy"]
+    released = 2000.0 * math.pi * 0.05 ** 2 * 9.81 * (0.7 - rec.series["body_y.disc"][-1])
+    assert released > 0
+    # the fluid's potential energy weights each cut cell's open area at the cell's centre, not
+    # at the open part's centroid: about rho g dx^3 / 2 per cut cell, +-0.2 J here (1 %)
+    assert np.max(e - e[0]) < 0.02 * released
+    assert e[-1] < e[0] - 0.0 * released
+    # reduced gravity (1 - 1/2) and added mass (half the displaced mass): a = g / 3 at first
+    vy = rec.series["body_vy.disc"]
+    assert vy[2] / rec.t[2] == pytest.approx(-9.81 / 3, rel=0.1)
+
+
+# -- the case format -----------------------------------------------------------------------------
+def test_bodies_in_a_fluid_case_refuse_bad_input():
+    with pytest.raises(CaseError) as exc:
+        _case(BOX % "0.25" + (BOX % "0.35").replace('"box"', '"box2"'), TANK)
+    assert exc.value.field == "bodies[1]"
+    with pytest.raises(CaseError) as exc:     # 1 cell from the bottom (2 required)
+        _case(BOX % "0.064", TANK)
+    assert exc.value.field == "bodies[0].position" and "bottom" in str(exc.value)
+    with pytest.raises(CaseError) as exc:
+        _case(BOX % "0.25", TANK + 'prescribed_velocity = { rotation = { center = [0.5, 0.5], '
+              'angular_velocity = 1.0 } }')
+    assert exc.value.field == "fluid.prescribed_velocity"
+    with pytest.raises(CaseError) as exc:
+        _case(BOX % "0.25", TANK + "kinematic_viscosity = 1e-3\nno_slip = false")
+    assert exc.value.field == "fluid.no_slip"
+    with pytest.raises(CaseError) as exc:
+        _case(BOX % "0.25", TANK, effects='gravity = [0.0, -9.81]\n[[effects.loads]]\n'
+              'body = "box"\nforce = [1.0, 0.0]')
+    assert exc.value.field == "effects.loads"
+    with pytest.raises(CaseError) as exc:
+        _case(BOX % "0.25", TANK, effects='gravity = [1.0, -9.81]')
+    assert exc.value.field == "effects.gravity"
+    with pytest.raises(CaseError) as exc:     # 1.3 cells from an obstacle
+        _case(BOX % "0.25", TANK + 'obstacles = [{ circle = { center = [0.67, 0.2], '
+              'radius = 0.05 } }]')
+    assert exc.value.field == "bodies[0].position"
+
+
+# -- only what is declared (issue 14, point 5) ---------------------------------------------------
+def test_fluid_without_bodies_runs_no_coupling_code(monkeypatch, fluid_case):
+    from crosscheck.sim.fluid import coupling, pressure, solver
+
+    def boom(*a, **k):
+        raise AssertionError("coupling code ran in a fluid case without bodies")
+
+    monkeypatch.setattr(coupling.Coupling, "__init__", boom)
+    monkeypatch.setattr(solver, "project_coupled", boom)
+    monkeypatch.setattr(pressure, "pcg_lowrank", boom)
+    monkeypatch.setattr(bodygeom, "window_geometry", boom)
+    scene = fluid_case("tank_at_rest", 0.05)
+    assert not scene.fluid.bodies
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    assert not any(k.startswith("body_") for k in rec.series)
+    assert "bodies" not in rec.meta and "coupling" not in rec.meta
+
+
+def test_rigid_scene_never_allocates_a_grid(monkeypatch):
+    from crosscheck.engines import driver, get_engine
+    from crosscheck.sim.fluid import run, solver
+
+    def boom(*a, **k):
+        raise AssertionError("a rigid scene built a fluid grid")
+
+    monkeypatch.setattr(solver.FluidState, "__init__", boom)
+    monkeypatch.setattr(run.FluidRun, "__init__", boom)
+    scene = load_case_text("""
+[case]
+name = "fall"
+dimension = 2
+[run]
+duration = 0.1
+dt = 0.01
+[effects]
+gravity = [0.0, -9.81]
+[[bodies]]
+name = "disc"
+shape = { circle = { radius = 0.1 } }
+mass = 1.0
+position = [0.0, 1.0]
+""", "fall.toml")
+    result = driver.run(get_engine("inhouse"), scene, "symplectic_euler", 0.01, cost=None)
+    assert result.fluid is None and result.trajectory is not None
+
+
+def test_spinning_disc_feels_no_pressure_moment_and_viscosity_slows_it():
+    """The flux of the body's rigid motion through a face is taken at the midpoint of the
+    face's solid part, so it is exact: a circle spinning about its centre displaces no water,
+    the pressure has no moment on it, and without viscosity it keeps its angular velocity (to
+    the CG tolerance). With viscosity the no-slip wall's momentum exchange spins it down, and
+    the fluid gains at least what it loses (the semi-Lagrangian trace near the body also drags
+    the fluid along, docs/fluid.md)."""
+    def spin(nu):
+        scene = _case("""
+[[bodies]]
+name = "disc"
+shape = { circle = { radius = 0.1 } }
+density = 1000.0
+position = [0.5, 0.5]
+angular_velocity = 2.0
+""", f"""
+domain = [1.0, 1.0]
+resolution = [48, 48]
+kinematic_viscosity = {nu}
+""", effects="", duration=0.1, dt=0.005)
+        return FluidRun(scene, "semi_lagrangian").record()
+
+    rec = spin(0.0)
+    assert rec.failure is None
+    w = rec.series["body_omega.disc"]
+    assert np.max(np.abs(w - 2.0)) < 1e-6
+    assert np.max(np.abs(rec.series["body_vx.disc"])) < 1e-6
+    rec = spin(1e-3)
+    assert rec.failure is None
+    w = rec.series["body_omega.disc"]
+    assert np.all(np.diff(w) < 0) and 1.0 < w[-1] < 1.8
+    assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.5
+
+
+def test_floating_disc(fluid_case):
+    """A disc of half the water's density (radius 0.08 m, 5.1 cells) released at the box's
+    point, 0.009 m above its half-immersed equilibrium, in the floating-box tank: the circle's
+    cut cells, its exact circular-segment buoyancy and the same metrics. Measured at this grid:
+    draft error 0.49 % (0.52 and 0.47 % at half and twice the resolution), volume 1e-5, energy
+    growth 2.5 % (0.4 % at twice); heave period 0.621 s (0.622 s at twice: converged) against
+    the high-frequency estimate 0.711 s, docs/fluid.md says why that is not judged here."""
+    import dataclasses
+
+    scene = fluid_case("floating_box")
+    disc = dataclasses.replace(scene.fluid.bodies[0], shape=Circle(0.08),
+                               mass=500.0 * math.pi * 0.08 ** 2,
+                               inertia=np.array([[0.5 * 500.0 * math.pi * 0.08 ** 4]]),
+                               com=np.zeros(2))
+    scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, bodies=(disc,)))
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    m = fluid_metrics(scene, rec)
+    assert m["draft_error"] < 0.01
+    assert m["volume_change"] < 1e-3
+    assert m["energy_growth"] < 0.05
+    assert 0.58 < m["heave_period"] < 0.66
+
+
+def test_viscous_exchange_conserves_momentum():
+    """One backward-Euler viscous step with the body as a no-slip wall moving at ``V*``: the
+    momentum the fluid gains is exactly what ``Coupling.viscous_exchange`` takes from the body
+    (the Laplacian's links between fluid samples cancel in pairs; the box's walls are far and
+    the fluid there at rest), and the moment it takes has the sign of the body's spin."""
+    from crosscheck.sim.fluid.boundary import impose
+    from crosscheck.sim.fluid.viscosity import THETA_MIN, diffuse_implicit
+
+    nu, dt = 1e-3, 0.01
+    scene = _case("""
+[[bodies]]
+name = "box"
+shape = { box = { size = [0.2, 0.1] } }
+density = 800.0
+position = [0.5, 0.5]
+orientation = 0.3
+velocity = [0.2, -0.1]
+angular_velocity = 1.5
+""", f"""
+domain = [1.0, 1.0]
+resolution = [64, 64]
+kinematic_viscosity = {nu}
+""", effects="", duration=dt, dt=dt)
+    st = FluidState(scene.fluid, np.zeros(2), INTEGRATORS["semi_lagrangian"])
+    c = st.coupling
+    c.predict(dt)
+    b = st.boundary
+    un, vn = st.u.copy(), st.v.copy()
+    st.classify()
+    impose(un, vn, st.ustate, st.vstate, b)
+    u0, v0 = un.copy(), vn.copy()
+    k = nu * dt / st.dx ** 2
+    diffuse_implicit(un, st.ustate, b.u_dist, b.u_solid, k, 0, st.gu)
+    diffuse_implicit(vn, st.vstate, b.v_dist, b.v_solid, k, 1, st.gv)
+    da = 1000.0 * st.dx ** 2
+    gained = np.array([da * np.sum((un - u0)[b.u_dist >= 0]),
+                       da * np.sum((vn - v0)[b.v_dist >= 0])])
+    v_before, w_before = c.body.v.copy(), c.body.omega
+    c.viscous_exchange(un, vn, nu, dt, THETA_MIN)
+    lost = c.body.mass * (v_before - c.body.v)
+    assert np.all(np.abs(gained) > 1e-6)
+    assert lost == pytest.approx(gained, rel=1e-6)
+    assert c.body.omega < w_before                   # the wall's drag slows the spin
+
+
+def test_body_reaching_a_wall_stops_the_run_with_the_reason():
+    """No contact between a body and the walls in the fluid: a box thrown above the water at
+    the side wall (0.4 m away at 3 m/s) ends the run when it comes within 1.5 cells of it, with
+    that reason (failure is data), and the samples before are kept."""
+    scene = _case(BOX % "0.42" + "velocity = [-3.0, 0.0]\n", TANK, duration=0.5)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is not None
+    assert "came within 1.5 cells of a wall" in rec.failure["reason"]
+    assert 0.12 < rec.failure["time"] < 0.135     # (0.4 - 1.5 / 64) m at 3 m/s: 0.126 s
+    assert rec.series["body_x.box"][-1] < 0.5
+
+
+@pytest.mark.parametrize("obstacle", [
+    "{ circle = { center = [1.0, 0.29], radius = 0.08 } }",
+    "{ box = { center = [1.0, 0.27], size = [0.2, 0.1], angle = 0.5 } }",
+    "{ polygon = { vertices = [[0.9, 0.3], [1.1, 0.3], [1.0, 0.15]] } }",
+])
+def test_surface_piercing_obstacles_stay_at_rest(obstacle):
+    """A solid whose wall slopes where the free surface meets it, in a tank at rest, stays at
+    rest: the level set is extrapolated into solid cells linearly (kernels.fill_solid), not by
+    the neighbours' mean, which put a fake surface half a cell off along sloping walls (before:
+    0.15 to 0.22 m/s of spurious current and 0.3 to 2 % of the water gained in 3 s). A floating
+    body's waterline is such a wall."""
+    scene = _case("", f"""
+domain = [2.0, 0.5]
+resolution = [128, 32]
+walls = {{ top = "open" }}
+initial = [{{ layer = {{ depth = 0.25 }} }}]
+obstacles = [{obstacle}]
+""", duration=1.0, dt=0.005)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    assert np.max(rec.series["max_speed"]) < 1e-6
+    v = rec.series["volume"]
+    assert abs(v[-1] - v[0]) / v[0] < 1e-9
