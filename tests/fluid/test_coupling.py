@@ -469,7 +469,7 @@ def _sedimentation(runs, dt=None):
     return scene, FluidRun(scene, "semi_lagrangian").record()
 
 
-def test_disc_settling_in_a_channel_against_faxen(runs):
+def test_disc_settling_in_a_channel_against_faxen(runs, tmp_path):
     """cases/fluid/sedimentation_channel.toml: a disc (a = 0.1 m, five times the fluid's density)
     on the centreline of a closed channel 0.8 m wide (k = a / h = 0.25), nu = 0.5 m^2/s, Re 0.047.
     Faxen's Stokes drag gives U = 0.11225 m/s. Measured (mean speed over whole cells of travel
@@ -501,6 +501,9 @@ def test_disc_settling_in_a_channel_against_faxen(runs):
     assert m2["terminal_velocity"] > m["terminal_velocity"]
     extrapolated = 2 * m["terminal_velocity"] - m2["terminal_velocity"]
     assert abs(extrapolated / u_ref - 1) < 0.035  # measured 2.7 %
+    from crosscheck.report.fluid_plots import plot_validation
+
+    assert plot_validation(scene, rec, tmp_path).name.endswith("-validation.png")
 
 
 def test_energy_lost_against_the_viscous_dissipation(runs):

@@ -198,6 +198,15 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
+    elif name == "channel_sedimentation":
+        body = spec.bodies[0]
+        vy = record.series[f"body_vy.{body.name}"]
+        ax[0].plot(record.t, -vy, label="simulation: settling speed")
+        ref = metrics.get("terminal_velocity_reference")
+        if ref is not None:
+            ax[0].axhline(ref, color="k", ls="--", label=f"Faxen (1946), Stokes: {ref:.4g} m/s")
+        ax[0].set_xlabel("t (s)")
+        ax[0].set_ylabel("m/s")
     elif name in SCHAFER_TUREK:
         _plot_dfg(ax[0], scene, record, name)
     else:
@@ -248,9 +257,8 @@ def animate(scene: Any, record: Any, outdir: Path, max_frames: int = 40) -> Path
 
 
 def plot_body(scene: Any, record: Any, body: Any, outdir: Path) -> Path | None:
-    """The coupled body's motion (its Trajectory, engines/driver.body_trajectory): centre of
-    mass height with the Archimedes equilibrium of a floating body where the water's level is
-    known, and the angle."""
+    """The coupled body's motion (its Trajectory, engines/driver.body_trajectory): the height of
+    its centre of mass and its angle over time."""
     if body is None or not len(body.t):
         return None
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.2))
