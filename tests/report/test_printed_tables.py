@@ -72,3 +72,42 @@ def test_sweep_table_fills_not_applicable_rows():
     row = next(line for line in text.splitlines() if line.startswith("| pymunk-default"))
     fields = [f.strip() for f in row.strip().strip("|").split("|")]
     assert all(fields) and "not applicable: 3D scene" in fields[-1]
+
+
+def test_a_coupled_body_has_an_end_state_a_plot_and_a_trajectory(tmp_path):
+    # The floating box, 0.1 s of it: the runner's fluid cell carries the body's end state (the
+    # driver's normalised Trajectory of it), the body plot and the saved body trajectory; the
+    # end-state table shows it instead of "no bodies"; the result is JSON (results.json).
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from crosscheck.runner.cell import execute_task
+    from crosscheck.state import Trajectory
+
+    src = Path(__file__).resolve().parents[2] / "cases" / "fluid" / "floating_box.toml"
+    case = tmp_path / "floating_box.toml"
+    case.write_text(src.read_text().replace("duration = 3.0", "duration = 0.1"))
+    task = {"kind": "cell", "id": "fb", "case": "fluid-floating-box", "case_file": str(case),
+            "engine": "inhouse", "integrator": "semi_lagrangian", "dt": 0.005, "cost": False,
+            "out": str(tmp_path / "out"), "save_trajectories": True}
+    cell = execute_task(task)
+    assert cell["fluid"] is True and cell["bodies"] == ["box"], cell.get("reason")
+    end = cell["end_state"]
+    assert abs(end["t"] - 0.1) < 1e-9 and end["rot_kind"] == "angle"
+    assert abs(end["com"][0][0] - 1.0) < 1e-3 and 0.2 < end["com"][0][1] < 0.26
+    assert end["vel"][0][1] < 0.0  # released above its draft: it sinks at first
+    from crosscheck.report.fluid_plots import embedded
+
+    # the floating body has no validation plot: the report's page shows the body's
+    assert embedded(cell["plots"]).endswith("-body.png")
+    body = Trajectory.load(cell["body_trajectory_file"])
+    assert body.com.shape == (cell["samples"], 1, 2) and body.angle.shape == (cell["samples"], 1)
+    assert body.meta["masses"] == [0.2 * 0.1 * 500.0] and body.meta["coupled_with_fluid"]
+    assert np.allclose(body.com[-1, 0], end["com"][0])
+    json.dumps(cell)
+    text = end_state_table([cell])
+    row = text.splitlines()[1]
+    assert "no bodies" not in text and "(the base of this case's rows)" in row \
+        and "0.1" in row.split()  # t_end printed to 4 digits

@@ -8,8 +8,9 @@ Every column is filled or says why not. A reference may lack a quantity (the ten
 analytic solution gives the flip period, not the orientation): that column is then compared
 with the case's most accurate other run (lowest worst metric / limit) at the same end time and
 marked ``*``, with a note under the table naming it. A row with no end state (not applicable,
-an error, a fluid run) says why in the ``vs`` column and shows ``-``, and so does the run the
-others are compared with when there is no reference.
+an error, a fluid run without bodies) says why in the ``vs`` column and shows ``-``, and so does
+the run the others are compared with when there is no reference. A fluid run with a coupled body
+has its body's end state (2D: +y up, angle counter-clockwise) like a rigid run.
 """
 
 from __future__ import annotations

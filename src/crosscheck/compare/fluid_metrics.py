@@ -21,6 +21,12 @@ All metrics are non-negative magnitudes, compared by the comparer as ``value <= 
   difference between the final and the initial region, relative to the initial area;
 * ``floating_body`` (a case with one ``[[bodies]]`` entry floating in a rectangular tank, see
   :func:`floating_body`): ``draft_error``, ``heave_period_error``, ``energy_growth``;
+* ``channel_sedimentation`` (one circular ``[[bodies]]`` entry settling on the centreline of a
+  closed vertical channel without a free surface, see :func:`channel_sedimentation`):
+  ``terminal_velocity_error`` against Faxen's low-Reynolds-number wall-corrected drag;
+* ``energy_audit`` (a coupled run in a viscous fluid, see :func:`energy_audit`):
+  ``viscous_dissipation_ratio``, the energy fluid and body lost against the viscous dissipation
+  integral over the same window;
 * DFG benchmark (tables ``schafer_turek_2d1``, ``schafer_turek_2d2``, see :func:`dfg_metrics`):
   for each published quantity ``q`` its value ``q``, ``q_error`` (relative difference from the
   FEATFLOW reference value, or from the interval's centre where there is none) and
@@ -82,6 +88,11 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out.update(dfg_metrics(scene, record, name, params))
     elif name == "floating_body":
         out.update(floating_body(scene, record, params))
+    elif name == "channel_sedimentation":
+        out.update(channel_sedimentation(scene, record, params))
+    if "total_energy" in s and "viscous_dissipation" in s:
+        out.update(energy_audit(record, float(params.get("audit_start",
+                                                         params.get("settle_time", 0.0)))))
     out.update(table_metrics(scene, record))
     return out
 
@@ -467,3 +478,89 @@ def heave_fit(t: np.ndarray, y: np.ndarray, y_eq: float, body: Any, spec: Any, l
     return {"heave_period": float(2 * math.pi / p[0]), "heave_damping": float(p[1]),
             "heave_fit_window": t_end,
             "heave_fit_rms": float(math.sqrt(best[1] / tt.shape[0]) / max(abs(a0), 1e-300))}
+
+
+def channel_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, float]:
+    """A disc settling on the centreline of a vertical channel (the walls at x = 0 and the
+    domain's width), gravity along -y, at a low Reynolds number:
+
+    * ``terminal_velocity``: the mean settling speed over the last whole number of cells of
+      travel after ``params.settle_time`` (default half the run): the speed varies periodically as
+      the disc crosses the grid lines (+-1.5 % at dx = a / 4), so a mean over part of a cell is
+      biased by up to that much; less than a cell of travel: the mean over the window;
+    * ``terminal_velocity_reference``: Faxen's Stokes settling velocity in the channel
+      (:func:`crosscheck.reference.fluid_data.faxen_settling_velocity`), ``terminal_reynolds``
+      ``2 a U / nu`` of the measured speed (Faxen's drag neglects inertia: keep it well below 1);
+    * ``terminal_velocity_error``: their relative difference;
+    * ``centreline_offset``: the largest ``|x - W / 2|`` over the run, m (the disc should not
+      drift off the axis; the formula is for the centreline)."""
+    from crosscheck.reference.fluid_data import faxen_settling_velocity
+    from crosscheck.scene.shapes import Circle
+
+    spec = scene.fluid
+    if len(spec.bodies) != 1 or spec.obstacles or not isinstance(spec.bodies[0].shape, Circle):
+        return {"terminal_velocity_error": math.inf}
+    body = spec.bodies[0]
+    a = float(body.shape.radius)
+    rho = spec.density
+    rho_s = body.mass / (math.pi * a * a)
+    nu = spec.kinematic_viscosity
+    width = spec.domain[0]
+    b = _body_series(record, body.name)
+    t = record.t
+    settle = float(params.get("settle_time", t[-1] / 2.0))
+    late = t >= settle - 1e-12
+    if not late.any() or not nu:
+        return {"terminal_velocity_error": math.inf}
+    u_sim = _whole_cells_speed(t[late], b["y"][late], spec.dx)
+    u_ref = faxen_settling_velocity(a, width / 2.0, rho_s, rho, nu, _gravity(scene))
+    return {"terminal_velocity": u_sim, "terminal_velocity_reference": u_ref,
+            "terminal_velocity_error": float(abs(u_sim / u_ref - 1.0)),
+            "terminal_reynolds": 2.0 * a * u_sim / nu,
+            "centreline_offset": float(np.max(np.abs(b["x"] - width / 2.0)))}
+
+
+def _whole_cells_speed(t: np.ndarray, y: np.ndarray, dx: float) -> float:
+    """Mean downward speed over the last whole number of cells ``dx`` of travel in ``y(t)``
+    (which falls), or over the whole window when it is shorter than a cell."""
+    travel = float(y[0] - y[-1])
+    cells = math.floor(travel / dx) if dx > 0 else 0
+    if cells < 1:
+        return travel / float(t[-1] - t[0]) if t[-1] > t[0] else math.nan
+    target = y[-1] + cells * dx  # y fell through it: the time it passed, interpolated
+    k = int(np.flatnonzero(y >= target)[-1])
+    if k + 1 < len(y) and y[k] != y[k + 1]:
+        t0 = t[k] + (t[k + 1] - t[k]) * (y[k] - target) / (y[k] - y[k + 1])
+    else:
+        t0 = t[k]
+    return cells * dx / float(t[-1] - t0)
+
+
+def energy_audit(record: Any, start: float = 0.0) -> dict[str, float]:
+    """The energy of fluid plus body lost over ``t >= start`` against what viscosity dissipated:
+
+    * ``energy_lost``: ``E(start) - E(end)`` of ``total_energy`` (kinetic and potential energy of
+      fluid and body), J/m;
+    * ``viscous_dissipation_integral``: the trapezoidal time integral of the measured
+      ``viscous_dissipation`` series (``2 mu integral of D:D dA`` at every sample, W/m);
+    * ``viscous_dissipation_ratio``: their ratio. 1 when viscosity accounts for all the loss;
+      above 1 the scheme dissipates by itself as well (the semi-Lagrangian trace's interpolation,
+      the first-order exchange with the body), below 1 the field's quadrature of ``D:D`` (first
+      order at a moving wall) over-counts or the scheme gains energy;
+    * ``energy_rise_max``: the largest rise of ``total_energy`` above its value at ``start``,
+      relative to ``energy_lost`` (what never should be positive beyond the quadrature of the
+      potential energy of cut cells)."""
+    t = np.asarray(record.t, float)
+    e = np.asarray(record.series["total_energy"], float)
+    phi = np.asarray(record.series["viscous_dissipation"], float)
+    sel = t >= start - 1e-12
+    if np.count_nonzero(sel) < 2:
+        return {}
+    t, e, phi = t[sel], e[sel], phi[sel]
+    lost = float(e[0] - e[-1])
+    integral = float(np.sum(0.5 * (phi[1:] + phi[:-1]) * np.diff(t)))
+    out = {"energy_lost": lost, "viscous_dissipation_integral": integral,
+           "viscous_dissipation_ratio": lost / integral if integral > 0 else math.inf}
+    if lost > 0:
+        out["energy_rise_max"] = float(max(0.0, np.max(e - e[0])) / lost)
+    return out

@@ -157,7 +157,8 @@ def _iqr(values: list[float]) -> float:
 @dataclass
 class RunResult:
     """What one run of one engine on one scene produced: a Trajectory (rigid bodies), a
-    FluidRecord (a fluid), or both for a coupled scene; and its cost."""
+    FluidRecord (a fluid), or both for a fluid scene with a coupled body (the body's motion
+    as a normalised Trajectory beside the record, :func:`body_trajectory`); and its cost."""
 
     trajectory: Trajectory | None = None
     fluid: Any = None  # crosscheck.sim.fluid.FluidRecord
@@ -165,8 +166,8 @@ class RunResult:
 
     @property
     def output(self):
-        """The primary output: the Trajectory, else the FluidRecord."""
-        return self.trajectory if self.trajectory is not None else self.fluid
+        """The primary output: the FluidRecord of a fluid scene, else the Trajectory."""
+        return self.fluid if self.fluid is not None else self.trajectory
 
     @property
     def failure(self) -> dict | None:
@@ -385,9 +386,33 @@ def _run_fluid(engine, scene: Scene, integrator: str, dt: float, cost: CostPlan 
         session.close()
     for key, value in engine.base_meta(scene, integrator, dt).items():
         record_.meta.setdefault(key, value)
-    result = RunResult(fluid=record_)
+    result = RunResult(fluid=record_, trajectory=body_trajectory(engine, scene, integrator, dt,
+                                                                 record_))
     if cost is not None:
         result.cost = measure_cost(lambda: engine.open_fluid(scene, integrator, dt), steps,
                                    None, cost)
         record_.meta["cost"] = result.cost.to_dict()
     return result
+
+
+def body_trajectory(engine, scene: Scene, integrator: str, dt: float, record
+                    ) -> Trajectory | None:
+    """The coupled bodies' motion in a FluidRecord as a normalised Trajectory (None without
+    bodies): the record's samples, centre of mass and its velocity (world, +y up), the
+    continuous angle (rad, counter-clockwise) and the angular velocity; masses and inertias
+    per metre of depth (docs/cases.md, "Bodies in a fluid case"), the run's failure."""
+    names = [b["name"] for b in (record.meta.get("bodies") or [])]
+    s = record.series
+    if not names or any(f"body_x.{n}" not in s for n in names):
+        return None
+
+    def col(key):  # (T, N)
+        return np.stack([np.asarray(s[f"body_{key}.{n}"], float) for n in names], axis=1)
+
+    meta = engine.base_meta(scene, integrator, dt)
+    meta.update(failure=record.failure, coupled_with_fluid=True, mass_per="metre of depth",
+                steps=(record.meta.get("dt") or {}).get("steps"))
+    return Trajectory(t=np.asarray(record.t, float),
+                      com=np.stack([col("x"), col("y")], axis=-1),
+                      vel=np.stack([col("vx"), col("vy")], axis=-1),
+                      omega=col("omega"), angle=col("angle"), meta=meta)

@@ -38,7 +38,8 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
     ghia_reynolds,
 )
 
-TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv"}
+TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv",
+          "faxen_1946": "faxen1946_cylinder_between_plates.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
     TABLES[f"ghia_1982_re{_re}_v"] = f"ghia1982_re{_re}_v_horizontal_centreline.csv"
@@ -125,3 +126,24 @@ def sloshing_period(width: float, depth: float, g: float, mode: int = 1) -> floa
     w^2 = g k tanh(k h) with k = mode pi / width."""
     k = mode * math.pi / width
     return 2 * math.pi / math.sqrt(g * k * math.tanh(k * depth))
+
+
+def faxen_channel_lambda(k: float) -> float:
+    """Faxen's (1946) wall factor ``Lambda(k)`` of a circular cylinder of radius ``a`` moving slowly
+    along the centreline between plane walls ``2 h`` apart, ``k = a / h``: the Stokes drag per
+    unit length is ``4 pi mu U / Lambda(k)`` (data/faxen1946_cylinder_between_plates.csv, with its
+    source and the caveat that the coefficients were not checked against a public copy). The
+    series is for ``k`` up to about 0.5."""
+    if not 0.0 < k < 1.0:
+        raise ValueError(f"k = a / h must be in (0, 1), got {k}")
+    table = load_table("faxen_1946")
+    return math.log(1.0 / k) + float(np.sum(table["coefficient"] * k ** table["power"]))
+
+
+def faxen_settling_velocity(radius: float, half_width: float, density_solid: float,
+                            density: float, kinematic_viscosity: float, g: float) -> float:
+    """Stokes settling velocity (m/s, positive down) of a disc on the centreline of a channel:
+    ``(rho_s - rho) pi a^2 g Lambda(k) / (4 pi mu)``, Faxen's drag against the reduced weight."""
+    lam = faxen_channel_lambda(radius / half_width)
+    mu = density * kinematic_viscosity
+    return (density_solid - density) * radius ** 2 * g * lam / (4.0 * mu)

@@ -35,7 +35,7 @@ from crosscheck.sim.fluid.levelset import surface_lines  # noqa: E402
 DPI = 90
 MOVES_CELLS = 2.0
 # The figure the page embeds (the rest are linked): the validation plot, else the frames.
-EMBED_ORDER = ("-validation.png", "-frames.png")
+EMBED_ORDER = ("-validation.png", "-body.png", "-frames.png")
 
 
 def embedded(paths: list[str]) -> str | None:
@@ -198,6 +198,15 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
+    elif name == "channel_sedimentation":
+        body = spec.bodies[0]
+        vy = record.series[f"body_vy.{body.name}"]
+        ax[0].plot(record.t, -vy, label="simulation: settling speed")
+        ref = metrics.get("terminal_velocity_reference")
+        if ref is not None:
+            ax[0].axhline(ref, color="k", ls="--", label=f"Faxen (1946), Stokes: {ref:.4g} m/s")
+        ax[0].set_xlabel("t (s)")
+        ax[0].set_ylabel("m/s")
     elif name in SCHAFER_TUREK:
         _plot_dfg(ax[0], scene, record, name)
     else:
@@ -247,8 +256,32 @@ def animate(scene: Any, record: Any, outdir: Path, max_frames: int = 40) -> Path
     return path
 
 
-def plot_fluid(scene: Any, record: Any, outdir: str | Path, animation: bool = True) -> list[Path]:
-    """Write the PNG (and GIF) figures of one fluid run into ``outdir``; return their paths."""
+def plot_body(scene: Any, record: Any, body: Any, outdir: Path) -> Path | None:
+    """The coupled body's motion (its Trajectory, engines/driver.body_trajectory): the height of
+    its centre of mass and its angle over time."""
+    if body is None or not len(body.t):
+        return None
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.2))
+    names = body.meta.get("bodies") or [f"body {k}" for k in range(body.n_bodies)]
+    for k, n in enumerate(names):
+        ax[0].plot(body.t, body.com[:, k, 1], label=f"{n}: y of the centre of mass")
+        ax[1].plot(body.t, body.angle[:, k], label=f"{n}")
+    ax[0].set_xlabel("t (s)")
+    ax[0].set_ylabel("y (m)")
+    ax[1].set_xlabel("t (s)")
+    ax[1].set_ylabel("angle (rad, ccw)")
+    ax[0].legend(fontsize=7)
+    ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    path = write_bytes(outdir / f"{_stem(scene, record)}-body.png", png(fig, DPI))
+    plt.close(fig)
+    return path
+
+
+def plot_fluid(scene: Any, record: Any, outdir: str | Path, animation: bool = True,
+               body: Any = None) -> list[Path]:
+    """Write the PNG (and GIF) figures of one fluid run into ``outdir``; return their paths.
+    ``body``: the coupled body's Trajectory, drawn in a ``-body.png`` of its own."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     out: list[Path] = []
@@ -257,6 +290,9 @@ def plot_fluid(scene: Any, record: Any, outdir: str | Path, animation: bool = Tr
     v = plot_validation(scene, record, outdir)
     if v is not None:
         out.append(v)
+    b = plot_body(scene, record, body, outdir)
+    if b is not None:
+        out.append(b)
     if animation:
         a = animate(scene, record, outdir)
         if a is not None:

@@ -168,7 +168,7 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
         result.update(_cost_fields(ran.cost.to_dict()))
     output = ran.output
     if scene.fluid is not None or not _is_trajectory(output):
-        return _finish_fluid(task, scene, output, result, run_seconds)
+        return _finish_fluid(task, scene, output, result, run_seconds, body=ran.trajectory)
     return _finish_rigid(task, scene, output, result, run_seconds)
 
 
@@ -311,7 +311,9 @@ def _end_state(traj) -> dict[str, Any] | None:
             "rot_kind": "quat" if traj.quat is not None else "angle"}
 
 
-def _finish_fluid(task, scene, record, result, run_seconds):
+def _finish_fluid(task, scene, record, result, run_seconds, body=None):
+    """A fluid run's result; ``body`` the coupled body's Trajectory (driver.body_trajectory),
+    whose end state the end-state table shows and whose motion is plotted beside the fluid's."""
     from crosscheck.compare.evaluate import evaluate
 
     verdict = evaluate(scene, record, None, task["engine"], task["integrator"])
@@ -322,6 +324,10 @@ def _finish_fluid(task, scene, record, result, run_seconds):
     result.update(status=verdict.status, reason=verdict.reason, metrics=verdict.metrics,
                   worst=verdict.worst, simulated_time=simulated, failure=failure, fluid=True,
                   engine_version=meta.get("engine_version", result.get("engine_version")))
+    if body is not None and len(body.t):
+        result["end_state"] = _end_state(body)
+        result["bodies"] = list(body.meta.get("bodies") or [])
+        result["samples"] = len(body.t)
     if verdict.failing:
         result["metric_table"] = verdict.table()
     if task.get("out"):
@@ -330,7 +336,7 @@ def _finish_fluid(task, scene, record, result, run_seconds):
 
             plot_dir = Path(task["out"]) / "plots" / safe_name(task["case"]) / (
                 f"{task['engine']}-{task['integrator']}-dt{dt_text(float(task['dt']))}")
-            result["plots"] = [str(p) for p in plot_fluid(scene, record, plot_dir)]
+            result["plots"] = [str(p) for p in plot_fluid(scene, record, plot_dir, body=body)]
         except ImportError:
             pass
         except Exception as exc:  # a plot failure must not lose the numbers
@@ -339,4 +345,8 @@ def _finish_fluid(task, scene, record, result, run_seconds):
             path = trajectory_path(task)
             record.save(path)
             result["trajectory_file"] = str(path)
+            if body is not None:
+                bpath = trajectory_path(task, "-body.npz")
+                body.save(bpath)
+                result["body_trajectory_file"] = str(bpath)
     return result

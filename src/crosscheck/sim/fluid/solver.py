@@ -45,7 +45,7 @@ from crosscheck.sim.fluid.pressure import (
     project_coupled,
 )
 from crosscheck.sim.fluid.viscosity import THETA_MIN as VISCOUS_THETA_MIN
-from crosscheck.sim.fluid.viscosity import diffuse_implicit
+from crosscheck.sim.fluid.viscosity import diffuse_implicit, viscous_dissipation
 
 
 @dataclass(frozen=True)
@@ -455,6 +455,25 @@ class FluidState:
     def centre_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         return 0.5 * (self.u[1:] + self.u[:-1]), 0.5 * (self.v[:, 1:] + self.v[:, :-1])
 
+    def viscous_dissipation(self, solid: np.ndarray) -> float:
+        """``2 mu integral of D:D dA`` of the current velocity, W/m (viscosity.viscous_dissipation:
+        cells weighted by their open liquid fraction, the domain's sides by their ghosts)."""
+        spec = self.spec
+        frac = (self.boundary.fluid_area if self.boundary.fluid_area is not None
+                else (~solid).astype(float))
+        weight = frac * ((self.phi < 0) if self.has_surface else 1.0)
+        ghosts = {}
+        for side in ("left", "right", "bottom", "top"):
+            kind = spec.walls.get(side, "solid")
+            if spec.lid is not None and spec.lid.side == side:
+                ghosts[side] = (-1.0, 2.0 * spec.lid.speed)
+            elif kind == "open" or (kind == "solid" and not spec.no_slip):
+                ghosts[side] = (1.0, 0.0)
+            else:  # a no-slip wall at rest; an inflow side has no tangential velocity
+                ghosts[side] = (-1.0, 0.0)
+        return viscous_dissipation(self.u, self.v, np.asarray(weight, float), self.dx,
+                                   spec.dynamic_viscosity, ghosts)
+
     def measure(self) -> dict[str, float]:
         dx = self.dx
         solid = self.boundary.cells
@@ -487,6 +506,8 @@ class FluidState:
             out["potential_energy"] = float(-self.spec.density * (g[0] * mx + g[1] * my))
             out["total_energy"] = (out["kinetic_energy"] + out["potential_energy"]
                                    + out["body_energy"])
+        if self.spec.kinematic_viscosity > 0.0:
+            out["viscous_dissipation"] = self.viscous_dissipation(solid)
         if self.forces is not None:
             spec = self.spec
             for name, (fx, fy) in self.forces.forces(self.u, self.v, self.p, spec.density,
