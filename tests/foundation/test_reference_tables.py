@@ -153,7 +153,9 @@ def test_ghia_tables_as_transcribed_from_the_paper():
         # 17 rows each, less the two misprints left out (documented in the files)
         assert len(u["y"]) == (16 if re in (3200, 10000) else 17) and len(v["x"]) == 17
         assert u["u"][0] == 1.0 and u["u"][-1] == 0.0 and v["v"][0] == v["v"][-1] == 0.0
-    assert len(TABLES) == 1 + 2 * len(GHIA_REYNOLDS)
+    # exactly one u and one v table per Reynolds number of the paper, none other
+    assert sorted(k for k in TABLES if k.startswith("ghia_1982")) == sorted(
+        f"ghia_1982_re{re}_{c}" for re in GHIA_REYNOLDS for c in "uv")
 
 
 # -- the case's own table --------------------------------------------------------------------------
