@@ -214,8 +214,25 @@ def default_contact_run(engine: str) -> str | None:
     return f"{models[0].integrators[0]}{SEPARATOR}{models[0].name}" if models else None
 
 
+# -- medium models (MuJoCo) on a fluid case ------------------------------------------------------
+# MuJoCo runs a 2D fluid case with one coupled disc and no free surface as a long cylinder in its
+# stateless medium (docs/engines.md, "MuJoCo's stateless medium against a resolved fluid"). Its two
+# fluid models are two approximations of the same truth (the resolved fluid), as the in-house
+# contact models are of one contact, so each is a run: "integrator+model" (e.g. "rk4+ellipsoid"),
+# and the runner puts both beside the in-house cell. On a 3D ``[effects] medium`` case the model
+# stays the engine option ``fluid_model`` (there the case's truth is exact for one model only).
+MEDIUM_MODELS: dict[str, tuple[str, ...]] = {"mujoco": ("inertia_box", "ellipsoid")}
+
+
+def medium_run_names(engine: str) -> tuple[str, ...]:
+    """Every "integrator+model" an engine accepts on a fluid case it maps to a medium."""
+    return tuple(f"{i}{SEPARATOR}{m}" for m in MEDIUM_MODELS.get(engine, ())
+                 for i in rigid_names(engine))
+
+
 INTEGRATOR_NAMES: dict[str, tuple[str, ...]] = {
-    engine: rigid_names(engine) + contact_run_names(engine) + fluid_names(engine)
+    engine: (rigid_names(engine) + contact_run_names(engine) + medium_run_names(engine)
+             + fluid_names(engine))
     for engine in ENGINES}
 
 

@@ -705,7 +705,8 @@ BAD_3D = [
      "an array of strings"),
     (setting("run.integrators", ["rk4"]), "run.integrators", "a table"),
     (setting("run.integrators.mujoco", ["euler", "rk5"]), "run.integrators.mujoco[1]",
-     "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete']"),
+     "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete', "
+     "'euler+inertia_box'"),
     (setting("run.integrators.mujoco", ["verlet"]), "run.integrators.mujoco[0]",
      "an integrator of mujoco"),  # an in-house name is not one of MuJoCo's
     (setting("run.integrators.inhouse", ["RK4"]), "run.integrators.inhouse[0]",

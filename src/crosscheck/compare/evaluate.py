@@ -60,7 +60,37 @@ def evaluate(scene: Scene, output, reference: Reference | None, engine: str,
     run against ``reference`` (None: no reference), anything else as a fluid record."""
     if scene.fluid is None and isinstance(output, Trajectory):
         return _rigid(scene, output, reference or Reference(), engine, integrator)
+    if isinstance(output, Trajectory):  # a fluid case an engine ran as a stateless medium
+        return _mapped(scene, output, engine, integrator)
     return _fluid(scene, output, engine, integrator)
+
+
+def _mapped(scene: Scene, traj: Trajectory, engine: str, integrator: str) -> Evaluation:
+    """A fluid case run by an engine as a body in its stateless medium (MuJoCo's mapped
+    cylinder, scene/medium_map.py; the model named by the run, "rk4+ellipsoid"): judged against
+    the closed form of the engine's own model (reference/medium_analytic.mapped_settling_metrics),
+    with the figures the report sets beside the in-house cell's. Conservation metrics are not
+    computed (the medium's drag dissipates; the fluid case has no medium effect to account for
+    the buoyancy's potential)."""
+    from crosscheck.names import split_run
+    from crosscheck.reference.medium_analytic import FLUIDCOEF_DEFAULT, mapped_settling_metrics
+
+    note = ""
+    values: dict[str, float | None] = {}
+    _, model = split_run(integrator)
+    coef = (scene.engine_options.get(engine, {}) or {}).get("fluidcoef", FLUIDCOEF_DEFAULT)
+    try:
+        values = mapped_settling_metrics(scene, traj, model, coef)
+    except (ValueError, KeyError) as exc:
+        note = f"the medium's closed form does not apply: {exc}"
+    metrics = _plain(values)
+    failure = traj.failure
+    blow_t = float(failure.get("time", 0.0)) if failure else None
+    blow_reason = (failure or {}).get("reason")
+    verdict = judge(scene, engine, integrator, metrics, blowup_time=blow_t,
+                    blowup_reason=blow_reason, missing_reason=note)
+    return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
+                      blowup_time=blow_t, blowup_reason=blow_reason, note=note)
 
 
 def _rigid(scene: Scene, traj: Trajectory, reference: Reference, engine: str,

@@ -90,6 +90,8 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out.update(floating_body(scene, record, params))
     elif name == "channel_sedimentation":
         out.update(channel_sedimentation(scene, record, params))
+    elif name == "disc_settling":
+        out.update(disc_settling(scene, record, params))
     if "total_energy" in s and "viscous_dissipation" in s:
         out.update(energy_audit(record, float(params.get("audit_start",
                                                          params.get("settle_time", 0.0)))))
@@ -518,6 +520,102 @@ def channel_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, fl
             "terminal_velocity_error": float(abs(u_sim / u_ref - 1.0)),
             "terminal_reynolds": 2.0 * a * u_sim / nu,
             "centreline_offset": float(np.max(np.abs(b["x"] - width / 2.0)))}
+
+
+def disc_settling(scene: Any, record: Any, params: dict) -> dict[str, float]:
+    """A disc released from rest in a closed domain full of fluid (no free surface), settling
+    far from the walls: the in-house cell of the comparison with MuJoCo's stateless medium
+    (docs/engines.md, "MuJoCo's stateless medium against a resolved fluid").
+
+    What both claim to model, judged where the case sets limits:
+
+    * ``terminal_velocity`` (m/s, down; the mean over the last whole cells of travel after
+      ``params.settle_time``, default half the run), ``terminal_reynolds`` 2 R U / nu and
+      ``drag_coefficient`` the C_D on the diameter that balances the reduced weight at that speed,
+      (rho_s / rho - 1) pi R g / U^2; ``drag_coefficient_published_low`` / ``_high``, the
+      published band of a cylinder in unbounded steady flow at that Reynolds number
+      (reference/fluid_data.cylinder_drag_band; None outside Re 20-40), and
+      ``drag_coefficient_error``, how far C_D lies outside the band relative to the nearer edge
+      (0 inside; None when there is no band);
+    * ``terminal_force_balance_error``: |mean fluid force / weight - 1| over the same window (the
+      fluid carries the whole weight at terminal speed: buoyancy plus drag);
+    * ``startup_acceleration`` (m/s^2, down, from the first three samples) against
+      ``startup_acceleration_reference`` g (rho_s - rho) / (rho_s + rho), the potential-flow
+      added mass of a cylinder (rho pi R^2 per unit length); ``startup_acceleration_error``;
+      ``added_mass_coefficient`` the C_a the measured acceleration implies.
+
+    What the report sets beside MuJoCo's cells (reported, not judged here: MuJoCo's constant
+    coefficients are not a cylinder's at this Reynolds number, and it has no added mass):
+    ``terminal_velocity_mujoco_<model>`` the closed form of MuJoCo's mapped cylinder
+    (reference/medium_analytic.mapped_law, with the case's ``engine_options.mujoco.fluidcoef``),
+    ``terminal_velocity_vs_mujoco_<model>`` = U / U_mujoco - 1, ``startup_acceleration_stateless``
+    g (1 - rho / rho_s), MuJoCo's; ``blockage`` 2 R / W (the walls MuJoCo does not have) and
+    ``centreline_offset`` the largest sideways drift, m."""
+    from crosscheck.reference.fluid_data import cylinder_drag_band
+    from crosscheck.reference.medium_analytic import (
+        FLUIDCOEF_DEFAULT,
+        MEDIUM_MODELS,
+        mapped_law,
+        settling_accelerations,
+        startup_acceleration,
+    )
+    from crosscheck.scene.medium_map import unmappable
+
+    spec = scene.fluid
+    why = unmappable(scene)
+    if why is not None:
+        return {"terminal_velocity": None, "startup_acceleration_error": None,
+                "drag_coefficient_error": None}
+    body = spec.bodies[0]
+    r = float(body.shape.radius)
+    rho = spec.density
+    rho_s = body.mass / (math.pi * r * r)
+    nu = spec.kinematic_viscosity
+    g = _gravity(scene)
+    b = _body_series(record, body.name)
+    t = np.asarray(record.t, float)
+    out: dict[str, float] = {"blockage": 2.0 * r / spec.domain[0],
+                             "centreline_offset": float(np.max(np.abs(b["x"] - b["x"][0])))}
+    acc = settling_accelerations(scene)
+    if len(t) >= 3:
+        a0 = -startup_acceleration(t, b["vy"])
+        out["startup_acceleration"] = a0
+        out["startup_acceleration_reference"] = acc["added_mass"]
+        out["startup_acceleration_error"] = float(abs(a0 / acc["added_mass"] - 1.0))
+        out["startup_acceleration_stateless"] = acc["stateless"]
+        out["added_mass_coefficient"] = float(((rho_s - rho) * g / a0 - rho_s) / rho)
+    settle = float(params.get("settle_time", t[-1] / 2.0)) if len(t) else 0.0
+    late = t >= settle - 1e-12
+    if late.sum() < 2 or g == 0.0:
+        out["terminal_velocity"] = None
+        return out
+    u = _whole_cells_speed(t[late], b["y"][late], spec.dx)
+    out["terminal_velocity"] = u
+    if nu > 0:
+        out["terminal_reynolds"] = 2.0 * r * u / nu
+    cd = (rho_s / rho - 1.0) * math.pi * r * g / (u * u)
+    out["drag_coefficient"] = cd
+    band = cylinder_drag_band(out.get("terminal_reynolds", math.nan))
+    if band is None:
+        out["drag_coefficient_error"] = None
+    else:
+        lo, hi = band
+        out["drag_coefficient_published_low"], out["drag_coefficient_published_high"] = lo, hi
+        out["drag_coefficient_error"] = float(max(lo - cd, cd - hi, 0.0)
+                                              / (lo if cd < lo else hi))
+    weight = body.mass * g
+    fy = np.asarray(record.series.get(f"body_force_y.{body.name}", []), float)
+    if len(fy) == len(t):
+        out["terminal_force_balance_error"] = float(abs(np.mean(fy[late]) / weight - 1.0))
+    coef = (scene.engine_options.get("mujoco", {}) or {}).get("fluidcoef", FLUIDCOEF_DEFAULT)
+    for model in MEDIUM_MODELS:
+        try:
+            u_mj = mapped_law(scene, model, coef)["u_t"]
+        except ValueError:
+            continue
+        out[f"terminal_velocity_mujoco_{model}"] = u_mj
+        out[f"terminal_velocity_vs_mujoco_{model}"] = u / u_mj - 1.0
+    return out
 
 
 def _whole_cells_speed(t: np.ndarray, y: np.ndarray, dx: float) -> float:

@@ -64,10 +64,11 @@ import numpy as np
 from crosscheck.engines.base import Capabilities, EngineBase
 from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
-from crosscheck.names import rigid_names
+from crosscheck.names import MEDIUM_MODELS, medium_run_names, rigid_names, split_run
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.contact import GROUND
-from crosscheck.scene.model import Scene
+from crosscheck.scene.medium_map import MappedCylinder, mapped_cylinder, unmappable
+from crosscheck.scene.model import Medium, Scene
 
 try:  # the registry imports this module lazily; a missing mujoco is "not applicable"
     import mujoco
@@ -169,8 +170,15 @@ def engine_options(scene: Scene) -> dict[str, Any]:
     """The case's [engine_options.mujoco] over the defaults; unknown keys or values refused."""
     given = dict(scene.engine_options.get("mujoco", {}))
     out = {}
+    fluid_case = scene.fluid is not None
     for key, value in given.items():
-        if key in FLUID_OPTIONS and scene.effects.medium is None:
+        if key == "fluid_model" and fluid_case:
+            # The mapped fluid case runs both models side by side: the run name chooses.
+            raise CaseError(scene.source, "engine_options.mujoco.fluid_model",
+                            'no fluid_model on a fluid case: the run name chooses the model '
+                            '(run.integrators.mujoco = ["rk4+ellipsoid", "rk4+inertia_box"])',
+                            value)
+        if key in FLUID_OPTIONS and scene.effects.medium is None and not fluid_case:
             raise CaseError(scene.source, f"engine_options.mujoco.{key}",
                             "no fluid option on a scene without [effects] medium (it would "
                             "change nothing)", value)
@@ -182,7 +190,7 @@ def engine_options(scene: Scene) -> dict[str, Any]:
                 raise CaseError(scene.source, "engine_options.mujoco.fluidcoef",
                                 "5 non-negative numbers: blunt drag, slender drag, angular drag, "
                                 "Kutta lift, Magnus lift (MuJoCo's geom fluidcoef)", value)
-            if given.get("fluid_model") != "ellipsoid":
+            if given.get("fluid_model") != "ellipsoid" and not fluid_case:
                 raise CaseError(scene.source, "engine_options.mujoco.fluidcoef",
                                 'fluid_model = "ellipsoid" beside it (the inertia-box model has '
                                 "no coefficients)", value)
@@ -450,16 +458,32 @@ class MujocoModel:
                  options: dict[str, Any] | None = None):
         if mujoco is None:  # pragma: no cover
             raise ImportError("mujoco is not installed")
+        self.run_name = integrator
+        # A fluid case runs as the mapped cylinder in a medium (scene/medium_map.py), its fluid
+        # model named by the run: "rk4+ellipsoid".
+        self.mapped: MappedCylinder | None = None
+        model_name = None
+        if scene.fluid is not None:
+            integrator, model_name = split_run(integrator)
+            if model_name not in MEDIUM_MODELS["mujoco"]:
+                raise ValueError(f"a fluid case runs in MuJoCo as integrator+model, model one of "
+                                 f"{list(MEDIUM_MODELS['mujoco'])}; got {self.run_name!r}")
+            self.mapped = mapped_cylinder(scene)
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown MuJoCo integrator {integrator!r}; known: {INTEGRATORS}")
         self.scene = scene
         self.integrator = integrator
         self.dt = float(dt)
         self.options = engine_options(scene) if options is None else options
+        if model_name is not None:
+            self.options = dict(self.options, fluid_model=model_name)
         self.dim = scene.dimension
         self.aligned = bool(self.options["align_free"]) and self.dim == 3
         self.contact = bool(scene.effects.contact)
         self.medium = scene.effects.medium
+        if self.mapped is not None:
+            self.medium = Medium(density=self.mapped.fluid_density,
+                                 viscosity=self.mapped.dynamic_viscosity)
         # The ellipsoid model acts on geoms (fluidshape="ellipsoid"), the inertia-box model on
         # the body's inertia alone.
         self.ellipsoid = self.medium is not None and self.options.get("fluid_model") == "ellipsoid"
@@ -633,8 +657,13 @@ class MujocoModel:
                 joints = (f'<joint name="j{i}x" type="slide" axis="1 0 0"/>'
                           f'<joint name="j{i}y" type="slide" axis="0 1 0"/>'
                           f'<joint name="j{i}r" type="hinge" axis="0 0 1" pos="{_v(c)}"/>')
-                inertial = (f'<inertial pos="{_v(c)}" mass="{_f(body.mass)}" '
-                            f'diaginertia="{_v([moment, moment, moment])}"/>')
+                mass, moments = body.mass, [moment, moment, moment]
+                if self.mapped is not None:
+                    # The cylinder's own mass and moments: the inertia-box model reads its box
+                    # from them (half sizes sqrt(3) R / 2, sqrt(3) R / 2, L / 2).
+                    mass, moments = self.mapped.mass, list(self.mapped.inertia)
+                inertial = (f'<inertial pos="{_v(c)}" mass="{_f(mass)}" '
+                            f'diaginertia="{_v(moments)}"/>')
             buoy = f' gravcomp="{_f(gravcomp[i])}"' if gravcomp[i] != 0.0 else ""
             bodies.append(f'<body name="b{i}"{buoy}>{joints}{inertial}{body_geoms.get(i, "")}'
                           f'{"".join(sites[i])}</body>')
@@ -653,6 +682,10 @@ class MujocoModel:
         frame: what the ellipsoid fluid model acts on (scenes without contact have no geoms)."""
         assets: list[str] = []
         geoms = {}
+        if self.mapped is not None:  # the cylinder along z, at the disc's centre
+            cyl = self.mapped
+            return {0: (f'<geom name="g0" type="cylinder" size="{_f(cyl.radius)} '
+                        f'{_f(cyl.length / 2)}" pos="0 0 0" contype="0" conaffinity="0"/>')}, ""
         for i, body in enumerate(self.scene.bodies):
             t, q_p, _, _ = self._frame(body)
             geoms[i] = self._geom(f"g{i}", body.shape, -(quat_to_matrix(q_p).T @ t),
@@ -666,6 +699,8 @@ class MujocoModel:
         out = np.zeros(len(self.scene.bodies))
         if self.medium is None or self.medium.density == 0.0:
             return out
+        if self.mapped is not None:
+            return np.array([self.mapped.gravcomp])
         from crosscheck.quantities import body_volumes
 
         return self.medium.density * body_volumes(self.scene) / self.scene.masses
@@ -1038,7 +1073,8 @@ class MujocoModel:
 
         m = self.model
         rho, mu = float(m.opt.density), float(m.opt.viscosity)
-        volumes = body_volumes(self.scene)
+        volumes = (np.array([self.mapped.volume]) if self.mapped is not None
+                   else body_volumes(self.scene))
         bodies = []
         for k, (b, body) in enumerate(zip(self.bodies, self.scene.bodies, strict=True)):
             bid = b.body_id
@@ -1090,6 +1126,16 @@ class MujocoModel:
                 "added_mass": "none applied (no -m_A dv/dt term in either model)",
                 "wind": np.array(m.opt.wind).tolist(), "bodies": bodies}
 
+    def _mapping(self) -> dict[str, Any]:
+        cyl = self.mapped
+        return {"mapping": _mapping_text(), "model": self.options["fluid_model"],
+                "radius": cyl.radius, "length": cyl.length,
+                "length_in_radii": cyl.length / cyl.radius, "mass": cyl.mass,
+                "principal_moments": list(cyl.inertia), "gravcomp": cyl.gravcomp,
+                "density": cyl.fluid_density, "viscosity": cyl.dynamic_viscosity,
+                "not_modelled": "added mass in the acceleration, walls, wake, Reynolds-number "
+                                "dependence of the drag (docs/engines.md)"}
+
     def effective(self, arrays=None) -> dict[str, Any]:
         """Settings read back from the compiled model, not from what was asked for."""
         m, d = self.model, self.data
@@ -1128,7 +1174,8 @@ class MujocoModel:
                                                    / np.max(np.abs(ref)))
             else:
                 entry["joint"] = "planar: slide x, slide y, hinge z through the centre of mass"
-                entry["inertia_rel_error"] = float(abs(moments[2] - body.moment) / body.moment)
+                want = self.mapped.inertia[2] if self.mapped is not None else body.moment
+                entry["inertia_rel_error"] = float(abs(moments[2] - want) / want)
             bodies.append(entry)
         springs = [{
             "mechanism": "spatial tendon",
@@ -1157,9 +1204,17 @@ class MujocoModel:
             "stepping": self.stepping_mode,
             "contact": self.contact_settings() if self.contact else "disabled (mjDSBL_CONTACT)",
             "medium": self.medium_settings() if self.medium is not None else "none",
+            "fluid_case": self._mapping() if self.mapped is not None else "none",
             "warnings": warnings,
             "options": dict(self.options),
         }
+
+
+def _mapping_text() -> str:
+    return ("the fluid case's disc as a cylinder of the same radius and density along z, "
+            "length LENGTH_IN_RADII radii, in a medium of the fluid's density and dynamic "
+            "viscosity (scene/medium_map.py); masses and forces scale with the length, "
+            "velocities compare directly")
 
 
 def _inertia_box_half_sizes(mass: float, moments: np.ndarray) -> np.ndarray:
@@ -1202,16 +1257,37 @@ class MujocoEngine(EngineBase):
             dimensions=frozenset({2, 3}),
             shapes=frozenset(_SHAPES_3D + _SHAPES_2D),
             effects=frozenset({"gravity", "springs", "drag", "loads", "contact", "medium"}),
-            integrators=INTEGRATORS,
+            integrators=INTEGRATORS + medium_run_names("mujoco"),
             notes=dict(INTEGRATOR_NOTES),
         )
 
     def version(self) -> str:
         return mujoco.__version__ if mujoco is not None else "not installed"
 
+    def maps_fluid(self, scene: Scene) -> bool:
+        """True for a fluid case MuJoCo runs as a cylinder in its medium (the driver then runs
+        it as a rigid scene through ``open``)."""
+        return scene.fluid is not None and unmappable(scene) is None
+
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         if mujoco is None:  # pragma: no cover
             return "the mujoco package is not installed"
+        if scene.fluid is not None:
+            why = unmappable(scene)
+            if why is not None:
+                return (f"MuJoCo has no grid fluid; its medium stands for a fluid case only "
+                        f"with {why[1]} ({why[0]}: {why[2]})")
+            base, model = split_run(integrator)
+            if model not in MEDIUM_MODELS["mujoco"] or base not in INTEGRATORS:
+                return (f"a fluid case runs in MuJoCo as the mapped cylinder with a named fluid "
+                        f"model: integrator+model, one of {list(medium_run_names('mujoco'))} "
+                        f"(got {integrator!r})")
+            self.check_options(scene)
+            return mujoco_limits(scene)
+        base, model = split_run(integrator)
+        if model is not None and model in MEDIUM_MODELS["mujoco"]:
+            return (f"{integrator!r} names a fluid model, which only a mapped fluid case takes; "
+                    "an [effects] medium case chooses it with engine_options.mujoco.fluid_model")
         return (super().not_applicable(scene, integrator) or mujoco_limits(scene)
                 or contact_limits(scene) or medium_limits(scene))
 

@@ -1275,7 +1275,8 @@ def _contact_note(kind: str, maximal: bool) -> str:
 class PybulletEngine(EngineBase):
     name = "pybullet"
     effect_reasons = {**EngineBase.effect_reasons,
-                      "fluid": "PyBullet has no grid fluid",
+                      "fluid": "PyBullet has no fluid: no grid fluid and no fluid model (no "
+                               "buoyancy, no fluid drag)",
                       "medium": "PyBullet has no fluid model (no buoyancy, no fluid drag)"}
 
     def check_options(self, scene: Scene) -> None:

@@ -603,7 +603,8 @@ class PymunkModel:
 class PymunkEngine(EngineBase):
     name = "pymunk"
     effect_reasons = {**EngineBase.effect_reasons,
-                      "fluid": "Pymunk has no grid fluid",
+                      "fluid": "Pymunk has no fluid: no grid fluid and no fluid model (no "
+                               "buoyancy, no fluid drag)",
                       "medium": "Pymunk has no fluid model (no buoyancy, no fluid drag)"}
 
     def check_options(self, scene: Scene) -> None:

@@ -39,7 +39,8 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
 )
 
 TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv",
-          "faxen_1946": "faxen1946_cylinder_between_plates.csv"}
+          "faxen_1946": "faxen1946_cylinder_between_plates.csv",
+          "cylinder_drag_steady": "cylinder_drag_steady_low_re.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
     TABLES[f"ghia_1982_re{_re}_v"] = f"ghia1982_re{_re}_v_horizontal_centreline.csv"
@@ -147,3 +148,18 @@ def faxen_settling_velocity(radius: float, half_width: float, density_solid: flo
     lam = faxen_channel_lambda(radius / half_width)
     mu = density * kinematic_viscosity
     return (density_solid - density) * radius ** 2 * g * lam / (4.0 * mu)
+
+
+def cylinder_drag_band(reynolds: float) -> tuple[float, float] | None:
+    """The published band (low, high) of the steady drag coefficient of a circular cylinder in
+    unbounded flow at ``reynolds`` (on the diameter), linear in log Re between the tabulated
+    Reynolds numbers (data/cylinder_drag_steady_low_re.csv: Re 20 and 40, with its sources and
+    caveats); None outside them (no extrapolation: C_D changes steeply with Re there, and above
+    Re ~ 47 the flow sheds vortices)."""
+    table = load_table("cylinder_drag_steady")
+    re = table["re"]
+    if not (math.isfinite(reynolds) and re[0] <= reynolds <= re[-1]):
+        return None
+    x = math.log(reynolds)
+    xs = np.log(re)
+    return (float(np.interp(x, xs, table["cd_low"])), float(np.interp(x, xs, table["cd_high"])))

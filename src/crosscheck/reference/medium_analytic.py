@@ -198,3 +198,147 @@ def terminal_velocity_metrics(scene: Scene, traj: Trajectory) -> dict:
 
 SOLUTIONS = {NAME: medium_settling}
 EXTRA_METRICS = {NAME: terminal_velocity_metrics}
+
+
+# -- a fluid case's disc as MuJoCo's long cylinder (scene/medium_map.py) -------------------------
+# MuJoCo's default ellipsoid coefficients (blunt drag, slender drag, angular drag, Kutta lift,
+# Magnus lift): the same numbers as engines/mujoco.FLUIDCOEF_DEFAULT (a test checks they agree);
+# written here so the reference does not import MuJoCo.
+FLUIDCOEF_DEFAULT = (0.5, 0.25, 1.5, 1.0, 1.0)
+MEDIUM_MODELS = ("inertia_box", "ellipsoid")
+
+
+def mapped_law(scene: Scene, model: str, fluidcoef=FLUIDCOEF_DEFAULT) -> dict:
+    """The 1D law (keys of :func:`law`) of MuJoCo's mapped cylinder in a fluid case, settling
+    along gravity (-y) from the disc's initial velocity, with MuJoCo's own coefficients:
+
+    * weight less buoyancy ``F = (m - rho_f V) g`` (the buoyancy is the adapter's gravcomp);
+    * ``"inertia_box"``: MuJoCo's box from the cylinder's moments, half sizes ``r_i = sqrt(3 (I_j
+      + I_k - I_i) / (2 M))`` = (sqrt(3) R / 2, sqrt(3) R / 2, L / 2); across the axis ``c = 2
+      rho r_x r_z`` (= sqrt(3) / 2 rho R L: C_D = sqrt(3) / 2 on the frontal width 2 R L),
+      ``b = 6 pi mu (r_x + r_y + r_z) / 3``;
+    * ``"ellipsoid"``: semi-axes (R, R, L / 2); across the axis the projected area ``pi R L / 2``
+      equals MuJoCo's ``A_max = pi r_max r_mid``, so the slender term vanishes and ``c =
+      C_blunt rho pi R L / 2`` (C_D = pi C_blunt / 2); ``b = 6 pi mu (2 R + L / 2) / 3``;
+    * no added mass (``m_e = m``): neither model has a ``-m_A dv/dt`` term.
+
+    Exact for MuJoCo's model (its forces measured against these formulas in
+    tests/engines/test_mujoco_medium.py); not a law of the resolved fluid."""
+    from crosscheck.scene.medium_map import mapped_cylinder
+
+    if model not in MEDIUM_MODELS:
+        raise _refuse(f"MuJoCo's fluid model is one of {list(MEDIUM_MODELS)}, got {model!r}")
+    cyl = mapped_cylinder(scene)
+    body = scene.fluid.bodies[0]
+    if float(body.angular_velocity[0]) != 0.0:
+        raise _refuse(f"{body.name!r} spins (the closed form has no Magnus lift)")
+    rho, mu, r, length, m = (cyl.fluid_density, cyl.dynamic_viscosity, cyl.radius, cyl.length,
+                             cyl.mass)
+    gvec = scene.effects.gravity_vector(2).astype(float)
+    g = float(np.linalg.norm(gvec))
+    if g == 0.0:
+        raise _refuse("the fluid case has no gravity: nothing settles")
+    n = gvec / g
+    v0 = np.asarray(body.velocity, float)
+    if np.linalg.norm(v0 - (v0 @ n) * n) > PARALLEL_RTOL * max(np.linalg.norm(v0), 1e-300):
+        raise _refuse(f"the initial velocity of {body.name!r} leaves the line of gravity")
+    force = (m - rho * cyl.volume) * g
+    if force < 0.0:  # a light disc rises: the law along -n
+        n, force = -n, -force
+    u0 = float(v0 @ n)
+    if model == "inertia_box":
+        i = np.asarray(cyl.inertia, float)
+        half = np.sqrt(np.maximum(1.5 * (i.sum() - 2.0 * i) / m, 0.0))
+        c = 2.0 * rho * half[0] * half[2]
+        b = 6.0 * math.pi * mu * float(np.mean(half))
+    else:
+        c_blunt = float(fluidcoef[0])
+        c = c_blunt * rho * math.pi * r * length / 2.0
+        b = 6.0 * math.pi * mu * (2.0 * r + length / 2.0) / 3.0
+    if c > 0.0 and u0 < 0.0:
+        raise _refuse(f"{body.name!r} starts moving against the net force")
+    if b == 0.0 and c == 0.0:
+        raise _refuse("the medium exerts no drag (zero viscosity and zero blunt coefficient)")
+    if c == 0.0:
+        u_t, u_m, k = force / b, None, b / m
+    else:
+        root = math.sqrt(b * b + 4.0 * c * force)
+        u_t, u_m, k = (-b + root) / (2.0 * c), (-b - root) / (2.0 * c), root / m
+    return {"n": n, "force": force, "m_e": m, "b": b, "c": c, "u0": u0, "u_t": u_t, "u_m": u_m,
+            "k": k, "drag": model, "added_mass": 0.0, "length": length, "radius": r}
+
+
+def startup_acceleration(t: np.ndarray, v: np.ndarray) -> float:
+    """The acceleration at t = 0 from the first three samples of a velocity series (one-sided
+    second-order difference; equal sample intervals are not assumed): exact for a quadratic
+    v(t). NaN with fewer than three samples."""
+    t = np.asarray(t, float)
+    v = np.asarray(v, float)
+    if len(t) < 3:
+        return math.nan
+    h1, h2 = t[1] - t[0], t[2] - t[0]
+    # derivative at t0 of the parabola through (t0, v0), (t1, v1), (t2, v2)
+    return float((v[1] - v[0]) * h2 / (h1 * (h2 - h1)) - (v[2] - v[0]) * h1 / (h2 * (h2 - h1)))
+
+
+def settling_accelerations(scene: Scene) -> dict:
+    """The start-up accelerations of a disc released from rest in a fluid case (m/s^2, along
+    gravity): ``stateless`` g (1 - rho_f / rho_s), what a medium without added mass gives
+    (MuJoCo: its models have no -m_A dv/dt); ``added_mass`` g (rho_s - rho_f) / (rho_s +
+    C_a rho_f) with the potential-flow added mass of a circular cylinder, C_a = 1 (Lamb,
+    Hydrodynamics, sec. 92: rho pi R^2 per unit length), what the resolved fluid should give
+    far from walls."""
+    body = scene.fluid.bodies[0]
+    rho = scene.fluid.density
+    rho_s = body.mass / (math.pi * float(body.shape.radius) ** 2)  # a disc (medium_map)
+    g = float(np.linalg.norm(scene.effects.gravity_vector(2)))
+    return {"stateless": g * (1.0 - rho / rho_s),
+            "added_mass": g * (rho_s - rho) / (rho_s + rho)}
+
+
+def mapped_settling_metrics(scene: Scene, traj: Trajectory, model: str,
+                            fluidcoef=FLUIDCOEF_DEFAULT) -> dict:
+    """MuJoCo's cell of a fluid case against the closed form of its own model
+    (:func:`mapped_law`), and the figures the report sets beside the in-house cell's:
+
+    * ``velocity_error_max`` (m/s) and ``position_error_max`` (m): the largest distance from
+      the closed form over the run;
+    * ``terminal_velocity_error_rel``: |u(T) - u_ref(T)| / u_t at the last sample;
+      ``terminal_velocity`` (closed form, m/s along gravity), ``terminal_velocity_measured``;
+    * ``terminal_reynolds`` 2 R u_t / nu and ``drag_coefficient`` the model's C_D on the
+      diameter at its terminal velocity, 2 F / (rho u_t^2 2 R L) (viscous term included);
+    * ``startup_acceleration`` from the first three samples, ``startup_acceleration_reference``
+      the stateless g (1 - rho_f / rho_s) and ``startup_acceleration_error`` their relative
+      difference; ``startup_acceleration_added_mass`` the resolved fluid's expectation, beside
+      it (MuJoCo cannot have it: no added mass)."""
+    lw = mapped_law(scene, model, fluidcoef)
+    t = np.asarray(traj.t, float)
+    out: dict = {}
+    if not len(t) or not np.all(np.isfinite(traj.vel[-1, 0])):
+        return {"terminal_velocity_error_rel": None, "velocity_error_max": None}
+    s, u = motion(lw, t)
+    n = lw["n"]
+    body = scene.fluid.bodies[0]
+    com_ref = body.com_world()[None, :] + s[:, None] * n[None, :]
+    vel_ref = u[:, None] * n[None, :]
+    out["velocity_error_max"] = float(np.max(np.linalg.norm(traj.vel[:, 0] - vel_ref, axis=1)))
+    out["position_error_max"] = float(np.max(np.linalg.norm(traj.com[:, 0] - com_ref, axis=1)))
+    u_run = traj.vel[:, 0] @ n
+    out["terminal_velocity"] = lw["u_t"]
+    out["terminal_velocity_measured"] = float(u_run[-1])
+    out["terminal_velocity_error_rel"] = float(abs(u_run[-1] - u[-1]) / abs(lw["u_t"]))
+    out["approach_time_constants"] = lw["k"] * float(t[-1])
+    rho = scene.fluid.density
+    nu = scene.fluid.kinematic_viscosity
+    if nu > 0:
+        out["terminal_reynolds"] = 2.0 * lw["radius"] * lw["u_t"] / nu
+    out["drag_coefficient"] = 2.0 * lw["force"] / (rho * lw["u_t"] ** 2 * 2.0 * lw["radius"]
+                                                   * lw["length"])
+    acc = settling_accelerations(scene)
+    if np.allclose(np.asarray(body.velocity, float), 0.0):
+        a0 = startup_acceleration(t, u_run)
+        out["startup_acceleration"] = a0
+        out["startup_acceleration_reference"] = acc["stateless"]
+        out["startup_acceleration_error"] = float(abs(a0 / acc["stateless"] - 1.0))
+        out["startup_acceleration_added_mass"] = acc["added_mass"]
+    return out

@@ -167,8 +167,10 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
     if ran.cost is not None:
         result.update(_cost_fields(ran.cost.to_dict()))
     output = ran.output
-    if scene.fluid is not None or not _is_trajectory(output):
+    if ran.fluid is not None or not _is_trajectory(output):
         return _finish_fluid(task, scene, output, result, run_seconds, body=ran.trajectory)
+    # A rigid scene, or a fluid case an engine ran as a body in its medium (MuJoCo's mapped
+    # cylinder): a Trajectory, judged by compare.evaluate.
     return _finish_rigid(task, scene, output, result, run_seconds)
 
 

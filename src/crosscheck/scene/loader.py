@@ -163,12 +163,37 @@ def _load(text: str, file: Path, base_dir: Path, digest: str,
     engine_options = _engine_options(top.sub("engine_options", {}))
     top.done()
 
-    return Scene(
+    scene = Scene(
         name=name, description=description, tags=tags, dimension=dimension, run=run,
         effects=effects, bodies=bodies, ground=ground, materials=materials, reference=reference,
         tolerances=tolerances, engine_options=engine_options, fluid=fluid, statics=statics,
         pair_overrides=pair_overrides, source=file, source_sha256=digest,
     )
+    _check_medium_runs(scene, unchecked)
+    return scene
+
+
+def _check_medium_runs(scene: Scene, unchecked: frozenset[str]) -> None:
+    """A fluid case that names medium-model runs for an engine ("rk4+ellipsoid": MuJoCo runs
+    the disc as a long cylinder in its stateless medium, scene/medium_map.py) must be one the
+    mapping applies to: what cannot be mapped is refused at its own field. (Whether a known name
+    applies to a scene otherwise stays a run-time verdict, as for every integrator name: a
+    medium run on a rigid case, or a bare MuJoCo integrator on a fluid case, is "not
+    applicable" with the reason.)"""
+    from crosscheck.names import MEDIUM_MODELS, split_run
+    from crosscheck.scene.medium_map import unmappable
+
+    if scene.fluid is None:
+        return
+    for engine, models in MEDIUM_MODELS.items():
+        runs = scene.run.integrators.get(engine, ())
+        if engine in unchecked or not any(split_run(n)[1] in models for n in runs):
+            continue
+        why = unmappable(scene)
+        if why is not None:
+            raise CaseError(scene.source, why[0],
+                            f"{why[1]} (run.integrators.{engine} asks {engine} to run this "
+                            "fluid case as a body in its stateless medium)", why[2])
 
 
 def _fluid(fields: Fields, dimension: int, statics: tuple = (), bodies: tuple = ()) -> Any:
