@@ -40,17 +40,6 @@ def unmappable(scene) -> tuple[str, str, Any] | None:
     fluid = scene.fluid
     if fluid is None:
         return ("fluid", "a [fluid] case (MuJoCo maps a 2D fluid case to a medium)", "none")
-    if len(fluid.bodies) != 1:
-        return ("bodies", "exactly one body in the fluid (the disc the mapped cylinder stands "
-                "for)", f"{len(fluid.bodies)} bodies")
-    body = fluid.bodies[0]
-    if body.shape.kind != "circle":
-        return ("bodies[0].shape", "a circle (the cross-section of the mapped MuJoCo cylinder; "
-                "a box or polygon has no mapping whose drag law is known in closed form)",
-                body.shape.kind)
-    if np.linalg.norm(np.asarray(body.com, float)) > 1e-12 * body.shape.radius:
-        return ("bodies[0].com", "the centre of mass at the disc's centre (the buoyancy acts at "
-                "the centroid; MuJoCo's gravcomp acts at the centre of mass)", list(body.com))
     if fluid.has_surface:
         return ("fluid.initial", "no free surface (the domain full of fluid): MuJoCo's medium "
                 "fills all space, its buoyancy is the whole rho V g wherever the body is",
@@ -65,6 +54,17 @@ def unmappable(scene) -> tuple[str, str, Any] | None:
     if fluid.lid is not None:
         return ("fluid.lid", "no moving side (a fluid at rest: MuJoCo's medium does not flow)",
                 fluid.lid.side)
+    if len(fluid.bodies) != 1:
+        return ("bodies", "exactly one body in the fluid (the disc the mapped cylinder stands "
+                "for)", f"{len(fluid.bodies)} bodies")
+    body = fluid.bodies[0]
+    if body.shape.kind != "circle":
+        return ("bodies[0].shape", "a circle (the cross-section of the mapped MuJoCo cylinder; "
+                "a box or polygon has no mapping whose drag law is known in closed form)",
+                body.shape.kind)
+    if np.linalg.norm(np.asarray(body.com, float)) > 1e-12 * body.shape.radius:
+        return ("bodies[0].com", "the centre of mass at the disc's centre (the buoyancy acts at "
+                "the centroid; MuJoCo's gravcomp acts at the centre of mass)", list(body.com))
     if fluid.density <= 0.0:
         return ("fluid.density", "a positive density", fluid.density)
     return None
