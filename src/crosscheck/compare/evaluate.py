@@ -73,7 +73,11 @@ def _mapped(scene: Scene, traj: Trajectory, engine: str, integrator: str) -> Eva
     computed (the medium's drag dissipates; the fluid case has no medium effect to account for
     the buoyancy's potential)."""
     from crosscheck.names import split_run
-    from crosscheck.reference.medium_analytic import FLUIDCOEF_DEFAULT, mapped_settling_metrics
+    from crosscheck.reference.medium_analytic import (
+        FLUIDCOEF_DEFAULT,
+        MAPPED_NOTES,
+        mapped_settling_metrics,
+    )
 
     note = ""
     values: dict[str, float | None] = {}
@@ -84,6 +88,7 @@ def _mapped(scene: Scene, traj: Trajectory, engine: str, integrator: str) -> Eva
     except (ValueError, KeyError) as exc:
         note = f"the medium's closed form does not apply: {exc}"
     metrics = _plain(values)
+    _notes(metrics, MAPPED_NOTES)
     failure = traj.failure
     blow_t = float(failure.get("time", 0.0)) if failure else None
     blow_reason = (failure or {}).get("reason")
@@ -136,6 +141,13 @@ def _plain(values: dict[str, float | None]) -> dict[str, dict[str, Any]]:
     return metrics
 
 
+def _notes(metrics: dict[str, dict[str, Any]], notes: dict[str, str]) -> None:
+    """Attach to reported metrics why they are not judged (shown beside the number)."""
+    for name, text in notes.items():
+        if name in metrics:
+            metrics[name]["note"] = text
+
+
 def _fluid(scene: Scene, record, engine: str, integrator: str) -> Evaluation:
     values: dict[str, float] = {}
     note = ""
@@ -146,6 +158,9 @@ def _fluid(scene: Scene, record, engine: str, integrator: str) -> Evaluation:
     except ImportError as exc:
         note = f"fluid metrics unavailable: {exc}"
     metrics = _plain(values)
+    from crosscheck.compare.fluid_metrics import DISC_SETTLING_NOTES
+
+    _notes(metrics, DISC_SETTLING_NOTES)
     failure = getattr(record, "failure", None)
     blow_t = float(failure.get("time", 0.0)) if failure else None
     blow_reason = (failure or {}).get("reason")

@@ -522,6 +522,22 @@ def channel_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, fl
             "centreline_offset": float(np.max(np.abs(b["x"] - width / 2.0)))}
 
 
+# Why the cross-engine figures of a settling disc are reported and not judged (attached to the
+# metrics by compare/evaluate.py, so a reader of the report sees the reason beside the number).
+DISC_SETTLING_NOTES = {
+    "terminal_velocity_vs_mujoco_ellipsoid":
+        "reported, not judged: MuJoCo's ellipsoid drag is C_D = pi C_blunt / 2 (0.785) plus "
+        "pi mu U per length whatever the Reynolds number; a cylinder's published C_D is "
+        "1.5-2.1 at Re 40-20",
+    "terminal_velocity_vs_mujoco_inertia_box":
+        "reported, not judged: MuJoCo's inertia-box drag is C_D = sqrt(3) / 2 (0.866) plus pi mu "
+        "U per length whatever the Reynolds number",
+    "startup_acceleration_stateless":
+        "MuJoCo's g (1 - rho_f / rho_s): its medium has no added mass (-m_A dv/dt)",
+    "blockage": "2 R / W: the closed box's walls slow the disc; MuJoCo's medium is unbounded",
+}
+
+
 def disc_settling(scene: Any, record: Any, params: dict) -> dict[str, float]:
     """A disc released from rest in a closed domain full of fluid (no free surface), settling
     far from the walls: the in-house cell of the comparison with MuJoCo's stateless medium

@@ -296,6 +296,17 @@ def settling_accelerations(scene: Scene) -> dict:
             "added_mass": g * (rho_s - rho) / (rho_s + rho)}
 
 
+# Why MuJoCo's figures beside the resolved fluid's are reported and not judged (attached to the
+# metrics by compare/evaluate.py).
+MAPPED_NOTES = {
+    "startup_acceleration_added_mass":
+        "the resolved fluid's g (rho_s - rho_f) / (rho_s + rho_f) (added mass rho pi R^2 per "
+        "length): MuJoCo's models have no -m_A dv/dt, so they cannot give it",
+    "drag_coefficient": "the model's C_D at its own terminal velocity (viscous term included): "
+                        "a constant-coefficient law, no Reynolds dependence, no walls, no wake",
+}
+
+
 def mapped_settling_metrics(scene: Scene, traj: Trajectory, model: str,
                             fluidcoef=FLUIDCOEF_DEFAULT) -> dict:
     """MuJoCo's cell of a fluid case against the closed form of its own model

@@ -1,0 +1,94 @@
+"""The in-house side of the comparison with MuJoCo (issue 14, point 4): the disc of
+``cases/fluid/settling_disc.toml`` (R = 0.05 m, rho_s / rho_f = 2, nu = 2.5e-3 m^2/s, a closed
+box 20 diameters wide full of fluid) settling from rest, coupled both ways.
+
+What the resolved fluid and MuJoCo's stateless medium both claim (the reduced weight, and a drag
+that carries it at terminal speed) is checked against the published drag of a cylinder; what
+they cannot share is measured: the added mass in the start-up acceleration (MuJoCo exactly
+g (1 - rho_f / rho_s), tests/engines/test_mujoco_fluid_case.py) and the terminal speed MuJoCo's
+constant coefficients give. Grid convergence: benchmarks/results/settling_disc.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from crosscheck.compare.fluid_metrics import fluid_metrics
+from crosscheck.reference.fluid_data import cylinder_drag_band
+from crosscheck.reference.medium_analytic import settling_accelerations, startup_acceleration
+from crosscheck.sim.fluid.run import FluidRun
+
+G = 9.81
+
+
+def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
+    """The first three 1 ms steps of the case: the disc starts at g (rho_s - rho_f) / (rho_s +
+    C_a rho_f) with C_a the added mass of a cylinder, 1 in unbounded potential flow (Lamb sec.
+    92) and 1.005 against the concentric tube of the box's half width (Kelvin's bound, (1 +
+    (R / b)^2) / (1 - (R / b)^2), b = 1 m). Measured: 3.2685 m/s^2 (C_a = 1.001) at the case's
+    R / dx = 2.4, 3.2864 (0.991) at 4 (benchmarks/results/settling_disc.md). Tolerance 3 %: the
+    kinetic energy the projection weights is first order at cut faces, 1-3 % on the added mass of
+    a cylinder in a closed box (docs/fluid.md). MuJoCo starts at g / 2 = 4.905 (its models have
+    no -m_A dv/dt): 1.5 times faster, the ratio (rho_s + rho_f) / rho_s the added mass makes."""
+    scene = fluid_case("settling_disc")
+    short = dataclasses.replace(scene, run=dataclasses.replace(
+        scene.run, duration=0.01, dt=0.001, sample_every=0.001))
+    rec = FluidRun(short, "semi_lagrangian").record()
+    assert rec.failure is None
+    a0 = -startup_acceleration(rec.t, rec.series["body_vy.disc"])
+    acc = settling_accelerations(scene)
+    assert acc["added_mass"] == pytest.approx(G * (2000 - 1000) / (2000 + 1000))
+    assert a0 == pytest.approx(acc["added_mass"], rel=0.03)
+    c_a = ((2000.0 - 1000.0) * G / a0 - 2000.0) / 1000.0
+    assert 0.97 < c_a < 1.06
+    # the difference MuJoCo cannot have, measured: 1.5 x (to the same 3 %)
+    assert acc["stateless"] / a0 == pytest.approx(1.5, rel=0.03)
+    assert acc["stateless"] == pytest.approx(G / 2)
+
+
+@pytest.mark.slow
+def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
+    """The case (2 s, 400 steps; 38 s on the shared 2-core machine at load 9, 20 s less loaded).
+
+    * Drag: the C_D that balances the reduced weight at the measured speed against the
+      published band of a cylinder in unbounded steady flow at the measured Re
+      (reference/data/cylinder_drag_steady_low_re.csv: 1.60-1.69 at Re 34.6). Measured 2.056
+      at R / dx = 2.4 (22 % above the band), 1.771 at 4 (8.5 %): converging at about second
+      order towards the band (benchmarks/results/settling_disc.md, which also has R / dx = 6.4
+      and the 10-diameter box). The limit is the case grid's measured error with a margin, 25 %.
+    * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.57 %
+      (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
+    * Beside MuJoCo (closed forms of its models for the mapped cylinder, which its runs match to
+      1e-12): MuJoCo settles at 1.304 (ellipsoid) / 1.246 m/s (inertia box); the resolved fluid
+      at 0.866, 34 % / 31 % slower. The published band alone predicts 23-26 % / 20-23 %
+      (U = sqrt((rho_s / rho - 1) pi R g / C_D)): most of the gap is MuJoCo's constant C_D
+      (0.906 / 0.993 at its own terminal speed, viscous term included), the rest this grid's
+      8-9 % of extra speed deficit."""
+    scene, rec = runs("settling_disc", "semi_lagrangian")
+    assert rec.failure is None
+    m = fluid_metrics(scene, rec)
+    assert m["centreline_offset"] < 1e-3
+    assert 30 < m["terminal_reynolds"] < 40  # inside the published table's Re 20-40
+    lo, hi = cylinder_drag_band(m["terminal_reynolds"])
+    assert m["drag_coefficient"] > hi  # the grid's bias is too much drag
+    assert m["drag_coefficient_error"] <= scene.tolerances["drag_coefficient_error"].limit(
+        "inhouse", "semi_lagrangian") == 0.25
+    assert m["terminal_force_balance_error"] < 0.02
+    k = (2000.0 / 1000.0 - 1.0) * math.pi * 0.05 * G
+    for model in ("ellipsoid", "inertia_box"):
+        u_mj = m[f"terminal_velocity_mujoco_{model}"]
+        gap = m[f"terminal_velocity_vs_mujoco_{model}"]
+        predicted = (math.sqrt(k / hi) / u_mj - 1.0, math.sqrt(k / lo) / u_mj - 1.0)
+        # MuJoCo's constant coefficients: faster than the published drag allows ...
+        assert predicted[1] < -0.15
+        # ... and the resolved fluid slower still by at most the grid's measured deficit
+        # (C_D 25 % above the band: speed 1 / sqrt(1.25) = 0.894 of it)
+        assert predicted[0] - 0.12 < gap < predicted[1]
+    # MuJoCo's start and the resolved fluid's differ by the added mass (see the test above)
+    assert m["startup_acceleration_stateless"] / m["startup_acceleration"] > 1.4
+    e = rec.series["total_energy"]
+    assert np.max(e - e[0]) < 0.02 * (e[0] - e[-1])  # energy falls; no rise beyond quadrature
