@@ -59,7 +59,8 @@ BAD = {
         'engines = ["inhouse", "mujoco"]',
         'engines = ["inhouse", "mujoco"]\nintegrators = { mujoco = ["rk5"] }'),
         "run.integrators.mujoco[0]",
-        "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete']"),
+        "an integrator of mujoco, one of ['euler', 'rk4', 'implicit', 'implicitfast', 'discrete', "
+        "'euler+inertia_box'"),
 }
 
 
