@@ -62,7 +62,13 @@ def main() -> None:
     ap.add_argument("--grids", type=int, nargs="+", default=[96, 160, 256])
     ap.add_argument("--widths", type=float, nargs="+", default=[2.0, 1.0])
     ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--markdown-only", action="store_true",
+                    help="rewrite the .md from the committed .json without running")
     args = ap.parse_args()
+    if args.markdown_only:
+        result = json.loads((OUT / "settling_disc.json").read_text())
+        (OUT / "settling_disc.md").write_text(markdown(result))
+        return
     base = load_case(CASE)
     rows = []
     for width in args.widths:
@@ -123,6 +129,7 @@ def markdown(result: dict) -> str:
             f"{_f(r['startup_acceleration'])} | {_f(r['startup_acceleration_1ms'])} | "
             f"{_f(r['added_mass_coefficient'], '{:.3f}')} | {_f(r['centreline_offset'], '{:.2g}')} "
             f"| {r['wall_s']:.0f} |")
+    lines += _walls_removed(result["inhouse"])
     lines += ["", "MuJoCo (the mapped cylinder, L = 1000 R, rk4 at the case's step):", "",
               "| run | u_t closed form (m/s) | error at T | velocity error max (m/s) | C_D | Re | "
               "a0 | a0 error |", "|---|---|---|---|---|---|---|---|"]
@@ -134,6 +141,33 @@ def markdown(result: dict) -> str:
                      f" | {_f(m.get('startup_acceleration'))} | "
                      f"{_f(m.get('startup_acceleration_error'), '{:.2g}')} |")
     return "\n".join(lines) + "\n"
+
+
+def _walls_removed(rows: list[dict]) -> list[str]:
+    """The two boxes at each grid, extrapolated linearly in the blockage B = 2 R / W to B = 0:
+    C_D(0) = (B2 C_D(B1) - B1 C_D(B2)) / (B2 - B1) (the drag of a cylinder grows with the
+    blockage, about linearly at small B: an estimate of the walls' share, not a result)."""
+    from crosscheck.reference.fluid_data import cylinder_drag_band
+
+    by = {}
+    for r in rows:
+        by.setdefault(round(r["cells_per_radius"], 3), []).append(r)
+    out = ["", "Walls removed (two boxes at each grid, linear in the blockage B to B = 0; an "
+           "estimate):", "", "| R/dx | B | C_D at B = 0 | U at B = 0 (m/s) | Re | published C_D |",
+           "|---|---|---|---|---|---|"]
+    for cpr, pair in sorted(by.items()):
+        pair = [p for p in pair if p["drag_coefficient"] is not None]
+        if len(pair) != 2:
+            continue
+        (a, b) = sorted(pair, key=lambda p: p["blockage"])
+        b1, b2 = a["blockage"], b["blockage"]
+        cd0 = (b2 * a["drag_coefficient"] - b1 * b["drag_coefficient"]) / (b2 - b1)
+        u0 = (b2 * a["terminal_velocity"] - b1 * b["terminal_velocity"]) / (b2 - b1)
+        re0 = a["terminal_reynolds"] * u0 / a["terminal_velocity"]
+        band = cylinder_drag_band(re0)
+        text = "-" if band is None else f"{band[0]:.3f}-{band[1]:.3f}"
+        out.append(f"| {cpr:.2f} | {b1:g}, {b2:g} | {cd0:.3f} | {u0:.4f} | {re0:.1f} | {text} |")
+    return out
 
 
 if __name__ == "__main__":

@@ -30,10 +30,12 @@ def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
     C_a rho_f) with C_a the added mass of a cylinder, 1 in unbounded potential flow (Lamb sec.
     92) and 1.005 against the concentric tube of the box's half width (Kelvin's bound, (1 +
     (R / b)^2) / (1 - (R / b)^2), b = 1 m). Measured: 3.2685 m/s^2 (C_a = 1.001) at the case's
-    R / dx = 2.4, 3.2864 (0.991) at 4 (benchmarks/results/settling_disc.md). Tolerance 3 %: the
-    kinetic energy the projection weights is first order at cut faces, 1-3 % on the added mass of
-    a cylinder in a closed box (docs/fluid.md). MuJoCo starts at g / 2 = 4.905 (its models have
-    no -m_A dv/dt): 1.5 times faster, the ratio (rho_s + rho_f) / rho_s the added mass makes."""
+    R / dx = 2.4, 3.2864 (0.985) at 4, 3.3084 (0.965) at 6.4 (benchmarks/results/
+    settling_disc.md): not monotone under refinement. Tolerance 3 % on the acceleration (C_a
+    within 0.95-1.06): the kinetic energy the projection weights is first order at cut faces,
+    1-3 % on the added mass of a cylinder in a closed box (docs/fluid.md). MuJoCo starts at
+    g / 2 = 4.905 (its models have no -m_A dv/dt): 1.5 times faster, the ratio
+    (rho_s + rho_f) / rho_s the added mass makes."""
     scene = fluid_case("settling_disc")
     short = dataclasses.replace(scene, run=dataclasses.replace(
         scene.run, duration=0.01, dt=0.001, sample_every=0.001))
@@ -44,7 +46,7 @@ def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
     assert acc["added_mass"] == pytest.approx(G * (2000 - 1000) / (2000 + 1000))
     assert a0 == pytest.approx(acc["added_mass"], rel=0.03)
     c_a = ((2000.0 - 1000.0) * G / a0 - 2000.0) / 1000.0
-    assert 0.97 < c_a < 1.06
+    assert 0.95 < c_a < 1.06
     # the difference MuJoCo cannot have, measured: 1.5 x (to the same 3 %)
     assert acc["stateless"] / a0 == pytest.approx(1.5, rel=0.03)
     assert acc["stateless"] == pytest.approx(G / 2)
@@ -57,9 +59,11 @@ def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
     * Drag: the C_D that balances the reduced weight at the measured speed against the
       published band of a cylinder in unbounded steady flow at the measured Re
       (reference/data/cylinder_drag_steady_low_re.csv: 1.60-1.69 at Re 34.6). Measured 2.056
-      at R / dx = 2.4 (22 % above the band), 1.771 at 4 (8.5 %): converging at about second
-      order towards the band (benchmarks/results/settling_disc.md, which also has R / dx = 6.4
-      and the 10-diameter box). The limit is the case grid's measured error with a margin, 25 %.
+      at R / dx = 2.4 (22 % above the band), 1.771 at 4 (8.5 %), 1.796 at 6.4 (9.8 %): the
+      grid's share is gone by R / dx = 4; what stays is the closed box (in a box 10 diameters
+      wide C_D is 10 % higher again at R / dx = 4; linear in the blockage, 2 C_D(0.05) -
+      C_D(0.10) = 1.59, inside the band) and the unfinished approach (benchmarks/results/
+      settling_disc.md). The limit is the case grid's measured error with a margin, 25 %.
     * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.57 %
       (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
     * Beside MuJoCo (closed forms of its models for the mapped cylinder, which its runs match to
