@@ -179,3 +179,16 @@ def test_the_runner_puts_mujocos_cell_beside_the_fluid_cells(scene, tmp_path):
     assert result["metrics"]["terminal_velocity"]["value"] == pytest.approx(1.24601, abs=1e-5)
     assert result["end_state"]["rot_kind"] == "angle" and "fluid" not in result
     assert result["effective"] is None or "fluid_case" in result["effective"]
+
+
+def test_mujocos_cell_of_a_fluid_case_never_builds_a_grid(scene, monkeypatch):
+    """Only what is declared: MuJoCo's cell takes the rigid path (no fluid session, no grid)."""
+    import crosscheck.sim.fluid.run as fluid_run
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a grid was built for MuJoCo's cell")
+
+    monkeypatch.setattr(fluid_run.FluidRun, "__init__", refuse)
+    monkeypatch.setattr(MujocoEngine, "open_fluid", refuse)
+    ran = run(ENGINE, scene, "rk4+ellipsoid", scene.run.dt, cost=None)
+    assert ran.fluid is None and ran.trajectory.failure is None
