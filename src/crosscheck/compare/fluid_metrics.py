@@ -545,18 +545,19 @@ def disc_settling(scene: Any, record: Any, params: dict) -> dict[str, float]:
 
     What both claim to model, judged where the case sets limits:
 
-    * ``terminal_velocity`` (m/s, down; the mean over the last whole cells of travel after
-      ``params.settle_time``, default half the run), ``terminal_reynolds`` 2 R U / nu and
-      ``drag_coefficient`` the C_D on the diameter that balances the reduced weight at that speed,
-      (rho_s / rho - 1) pi R g / U^2; ``drag_coefficient_published_low`` / ``_high``, the
-      published band of a cylinder in unbounded steady flow at that Reynolds number
-      (reference/fluid_data.cylinder_drag_band; None outside Re 20-40), and
-      ``drag_coefficient_error``, how far C_D lies outside the band relative to the nearer edge
-      (0 inside; None when there is no band);
+    * ``terminal_velocity`` (m/s along the net force: down for a heavy disc, up for a light
+      one; the mean over the last whole cells of travel after ``params.settle_time``, default
+      half the run), ``terminal_reynolds`` 2 R U / nu and ``drag_coefficient`` the C_D on the
+      diameter that balances the reduced weight at that speed, |rho_s / rho - 1| pi R g / U^2;
+      ``drag_coefficient_published_low`` / ``_high``, the published band of a cylinder in
+      unbounded steady flow at that Reynolds number (reference/fluid_data.cylinder_drag_band;
+      None outside Re 20-40), and ``drag_coefficient_error``, how far C_D lies outside the band
+      relative to the nearer edge (0 inside; None when there is no band);
     * ``terminal_force_balance_error``: |mean fluid force / weight - 1| over the same window (the
       fluid carries the whole weight at terminal speed: buoyancy plus drag);
-    * ``startup_acceleration`` (m/s^2, down, from the first three samples) against
-      ``startup_acceleration_reference`` g (rho_s - rho) / (rho_s + rho), the potential-flow
+    * ``startup_acceleration`` (m/s^2 along gravity, negative rising, from the first three
+      samples) against ``startup_acceleration_reference`` g (rho_s - rho) / (rho_s + rho), the
+      potential-flow
       added mass of a cylinder (rho pi R^2 per unit length); ``startup_acceleration_error``;
       ``added_mass_coefficient`` the C_a the measured acceleration implies.
 
@@ -605,11 +606,13 @@ def disc_settling(scene: Any, record: Any, params: dict) -> dict[str, float]:
     if late.sum() < 2 or g == 0.0:
         out["terminal_velocity"] = None
         return out
-    u = _whole_cells_speed(t[late], b["y"][late], spec.dx)
+    # along the net force: down for a heavy disc, up for a light one (its -y falls)
+    sign = 1.0 if rho_s >= rho else -1.0
+    u = _whole_cells_speed(t[late], sign * b["y"][late], spec.dx)
     out["terminal_velocity"] = u
     if nu > 0:
         out["terminal_reynolds"] = 2.0 * r * u / nu
-    cd = (rho_s / rho - 1.0) * math.pi * r * g / (u * u)
+    cd = abs(rho_s / rho - 1.0) * math.pi * r * g / (u * u)
     out["drag_coefficient"] = cd
     band = cylinder_drag_band(out.get("terminal_reynolds", math.nan))
     if band is None:

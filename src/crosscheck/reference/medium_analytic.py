@@ -283,11 +283,11 @@ def startup_acceleration(t: np.ndarray, v: np.ndarray) -> float:
 
 def settling_accelerations(scene: Scene) -> dict:
     """The start-up accelerations of a disc released from rest in a fluid case (m/s^2, along
-    gravity): ``stateless`` g (1 - rho_f / rho_s), what a medium without added mass gives
-    (MuJoCo: its models have no -m_A dv/dt); ``added_mass`` g (rho_s - rho_f) / (rho_s +
-    C_a rho_f) with the potential-flow added mass of a circular cylinder, C_a = 1 (Lamb,
-    Hydrodynamics, sec. 92: rho pi R^2 per unit length), what the resolved fluid should give
-    far from walls."""
+    gravity; negative for a light disc, which rises): ``stateless`` g (1 - rho_f / rho_s), what
+    a medium without added mass gives (MuJoCo: its models have no -m_A dv/dt); ``added_mass``
+    g (rho_s - rho_f) / (rho_s + C_a rho_f) with the potential-flow added mass of a circular
+    cylinder, C_a = 1 (Lamb, Hydrodynamics, sec. 92: rho pi R^2 per unit length), what the
+    resolved fluid should give far from walls."""
     body = scene.fluid.bodies[0]
     rho = scene.fluid.density
     rho_s = body.mass / (math.pi * float(body.shape.radius) ** 2)  # a disc (medium_map)
@@ -347,7 +347,10 @@ def mapped_settling_metrics(scene: Scene, traj: Trajectory, model: str,
                                                    * lw["length"])
     acc = settling_accelerations(scene)
     if np.allclose(np.asarray(body.velocity, float), 0.0):
-        a0 = startup_acceleration(t, u_run)
+        # along gravity, as settling_accelerations (negative: a light disc rises)
+        down = scene.effects.gravity_vector(2).astype(float)
+        down = down / np.linalg.norm(down)
+        a0 = startup_acceleration(t, traj.vel[:, 0] @ down)
         out["startup_acceleration"] = a0
         out["startup_acceleration_reference"] = acc["stateless"]
         out["startup_acceleration_error"] = float(abs(a0 / acc["stateless"] - 1.0))
