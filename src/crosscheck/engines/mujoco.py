@@ -37,6 +37,11 @@ What is mapped how (docs/engines.md has the full table):
   force is constant across the four stages: first order in the drag term).
 * **Loads** are constant ``xfrc_applied`` rows (force at the centre of mass, torque, world frame),
   set once.
+* **A fluid case** (one disc, no free surface: scene/medium_map.py) runs as the disc's long
+  cylinder in MuJoCo's medium, the fluid model named by the run ("rk4+ellipsoid",
+  "rk4+inertia_box"): planar joints as a 2D body, the cylinder's own mass and moments, the
+  fluid's density and dynamic viscosity as ``opt.density`` / ``opt.viscosity``, buoyancy as
+  gravcomp (docs/engines.md, "MuJoCo's stateless medium against a resolved fluid").
 
 Stepping (engine option ``stepping``). ``advance(n)`` is ``mj_step(m, d, nstep=n)`` (a Python
 loop only when drag is applied per step); after it MuJoCo's warning counters are read, and any
@@ -1211,8 +1216,10 @@ class MujocoModel:
 
 
 def _mapping_text() -> str:
-    return ("the fluid case's disc as a cylinder of the same radius and density along z, "
-            "length LENGTH_IN_RADII radii, in a medium of the fluid's density and dynamic "
+    from crosscheck.scene.medium_map import LENGTH_IN_RADII
+
+    return (f"the fluid case's disc as a cylinder of the same radius and density along z, "
+            f"{LENGTH_IN_RADII:g} radii long, in a medium of the fluid's density and dynamic "
             "viscosity (scene/medium_map.py); masses and forces scale with the length, "
             "velocities compare directly")
 
