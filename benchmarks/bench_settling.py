@@ -62,19 +62,24 @@ def main() -> None:
     ap.add_argument("--grids", type=int, nargs="+", default=[96, 160, 256])
     ap.add_argument("--widths", type=float, nargs="+", default=[2.0, 1.0])
     ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--dt", type=float, default=None,
+                    help="the fluid's largest step instead of the case's (the time step's share)")
+    ap.add_argument("--tag", default="",
+                    help="write settling_disc<tag>.{json,md} (a study beside the main one)")
     ap.add_argument("--markdown-only", action="store_true",
                     help="rewrite the .md from the committed .json without running")
     args = ap.parse_args()
+    stem = f"settling_disc{args.tag}"
     if args.markdown_only:
-        result = json.loads((OUT / "settling_disc.json").read_text())
-        (OUT / "settling_disc.md").write_text(markdown(result))
+        result = json.loads((OUT / f"{stem}.json").read_text())
+        (OUT / f"{stem}.md").write_text(markdown(result))
         return
     base = load_case(CASE)
     rows = []
     for width in args.widths:
         for nx0 in args.grids:
             nx = int(round(nx0 * width / base.fluid.domain[0]))
-            sc = variant(base, nx, width, duration=args.duration)
+            sc = variant(base, nx, width, duration=args.duration, dt=args.dt)
             t0 = time.perf_counter()
             rec = FluidRun(sc, "semi_lagrangian").record()
             wall = time.perf_counter() - t0
@@ -84,7 +89,7 @@ def main() -> None:
             srec = FluidRun(short, "semi_lagrangian").record()
             body = short.fluid.bodies[0].name
             a_step = -startup_acceleration(srec.t, srec.series[f"body_vy.{body}"])
-            row = {"width": width, "nx": nx, "ny": sc.fluid.resolution[1],
+            row = {"width": width, "nx": nx, "ny": sc.fluid.resolution[1], "dt": sc.run.dt,
                    "cells_per_radius": sc.fluid.bodies[0].shape.radius / sc.fluid.dx,
                    "wall_s": wall, "steps": (rec.meta.get("dt") or {}).get("steps"),
                    "failure": rec.failure, "startup_acceleration_1ms": a_step,
@@ -101,8 +106,8 @@ def main() -> None:
     result = {"case": str(CASE.relative_to(ROOT)), "machine": platform.machine(),
               "python": platform.python_version(), "inhouse": rows, "mujoco": mujoco}
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "settling_disc.json").write_text(json.dumps(result, indent=2))
-    (OUT / "settling_disc.md").write_text(markdown(result))
+    (OUT / f"{stem}.json").write_text(json.dumps(result, indent=2))
+    (OUT / f"{stem}.md").write_text(markdown(result))
 
 
 def _f(x, fmt="{:.4g}"):
@@ -112,7 +117,7 @@ def _f(x, fmt="{:.4g}"):
 def markdown(result: dict) -> str:
     lines = ["# Settling disc: in-house coupled run beside MuJoCo's stateless medium", "",
              f"`{result['case']}`, written by `benchmarks/bench_settling.py`.", "",
-             "| width (m) | grid | R/dx | U (m/s) | Re | C_D | published C_D "
+             "| width (m) | grid (largest step) | R/dx | U (m/s) | Re | C_D | published C_D "
              "| U / U_mj,ellipsoid - 1 | U / U_mj,box - 1 | a0 (samples) | a0 (1 ms steps) "
              "| C_a | drift (m) | wall (s) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -121,7 +126,8 @@ def markdown(result: dict) -> str:
                 f"{r['drag_coefficient_published_low']:.3f}-"
                 f"{r['drag_coefficient_published_high']:.3f}")
         lines.append(
-            f"| {r['width']:g} | {r['nx']}x{r['ny']} | {r['cells_per_radius']:.2f} | "
+            f"| {r['width']:g} | {r['nx']}x{r['ny']} ({r.get('dt', 0.005):g} s) | "
+            f"{r['cells_per_radius']:.2f} | "
             f"{_f(r['terminal_velocity'])} | {_f(r['terminal_reynolds'], '{:.1f}')} | "
             f"{_f(r['drag_coefficient'])} | {band} | "
             f"{_f(r['terminal_velocity_vs_mujoco_ellipsoid'], '{:+.3f}')} | "
