@@ -87,8 +87,9 @@ def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
       at R / dx = 2.4 (22 % above the band), 1.771 at 4 (8.5 %), 1.796 at 6.4 (9.8 %): the
       grid's share is gone by R / dx = 4; what stays is the closed box (in a box 10 diameters
       wide C_D is 10 % higher again at R / dx = 4; linear in the blockage, 2 C_D(0.05) -
-      C_D(0.10) = 1.59, inside the band) and the unfinished approach (benchmarks/results/
-      settling_disc.md). The limit is the case grid's measured error with a margin, 25 %.
+      C_D(0.10) = 1.59, inside the band), the 5 ms step (halved: C_D +2.4 %, the other way) and
+      the unfinished approach (benchmarks/results/settling_disc.md, settling_disc_dt.md). The
+      limit is the case grid's measured error with a margin, 25 %.
     * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.57 %
       (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
     * Beside MuJoCo (closed forms of its models for the mapped cylinder, which its runs match to
