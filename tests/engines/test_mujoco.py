@@ -113,7 +113,10 @@ def test_integrator_names_select_mujoco_integrators(integrator):
 def test_capabilities_and_version():
     caps = ENGINE.capabilities()
     assert caps.default_integrator == "euler"  # MuJoCo's own default
-    assert set(caps.integrators) == {"euler", "rk4", "implicit", "implicitfast", "discrete"}
+    base = {"euler", "rk4", "implicit", "implicitfast", "discrete"}
+    # and each of them with a fluid model, for a fluid case mapped to MuJoCo's medium
+    medium = {f"{i}+{m}" for i in base for m in ("inertia_box", "ellipsoid")}
+    assert set(caps.integrators) == base | medium
     assert caps.dimensions == {2, 3}
     assert {"sphere", "box", "capsule", "cylinder", "mesh", "circle", "polygon"} <= caps.shapes
     assert "contact" in caps.effects
