@@ -1,0 +1,288 @@
+"""Steps per second on piles (issue 12 point 4): the in-house contact models beside MuJoCo,
+PyBullet and Pymunk on the same scenes, in one run, with each run's soundness beside its speed.
+
+    .venv/bin/python benchmarks/bench_piles.py [--sizes 200 1000 5000] [--repeats 3]
+                                               [--cap 240] [--only SCENE ...] [--out DIR]
+
+Scenes: tests/piles/pile_scenes.py (shared with tests/piles/test_pile_scenes.py): spheres into a
+bin (200, 1000, 5000), 200 spheres onto the bare ground, 200 cubes into a bin, a 2D pile of 200
+circles and squares into a 2D bin; dt = 1e-3.
+
+Engines, through crosscheck's adapters and run driver only (engines/driver.py):
+
+* in-house: every registered contact model (crosscheck.names.CONTACT_MODELS) with
+  ``symplectic_euler``, the one integrator all four pair with and the cheapest (one force
+  evaluation per step);
+* MuJoCo at the adapter's settings with its default solver (Newton) and with ``[engine_options.
+  mujoco] solver = "cg"`` (its fastest sound setting on piles, CONTACTS.md 3b);
+* PyBullet as the adapter runs it, both integrators (``maximal``, ``multibody``);
+* Pymunk on the 2D pile (the in-house models run there too).
+
+Per scene, every cell (engine + setting) lives in a worker process of its own for the whole
+scene: first the driver's accuracy pass (``driver.run(..., cost=None)``, 11 samples) gives the
+soundness figures; then ``--repeats`` rounds in which every cell in turn runs one repetition of
+the driver's cost pass (``driver.measure_cost``: a fresh session, one untimed warm-up step, then
+``advance`` over the run's steps timed without recording: docs/metrics.md "Cost"). The rounds
+interleave the cells so that the load of the shared machine falls on all of them alike; best and
+median of the repetitions are reported, with the load average before and after each scene.
+
+A cell whose one command (accuracy pass or one repetition) runs longer than ``--cap`` seconds is
+stopped (its worker killed) and reported as capped with the steps/s it cannot exceed.
+
+Soundness at the end of the accuracy pass: no failure reported by the driver, every body finite,
+inside the bin (or above the ground for the open scene), and the deepest penetration of any pair
+over the samples from crosscheck's own contact metrics (compare/contact_metrics.py). "sound"
+means all of these, with a penetration under 5 mm (r/10: the bound the committed sphere-pile case
+gives MuJoCo, whose soft contact sinks by design; the others are held to 1 mm there).
+
+Writes ``benchmarks/results/piles.json`` and ``benchmarks/results/piles.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "piles"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import pile_scenes  # noqa: E402
+from piles_report import report  # noqa: E402
+
+from crosscheck.names import contact_model_names  # noqa: E402
+
+OUT = ROOT / "benchmarks" / "results"
+DT = pile_scenes.DT
+PENETRATION_SOUND = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
+INHOUSE_INTEGRATOR = "symplectic_euler"
+
+
+def cells_for(pile) -> list[dict]:
+    """The engine settings run on a scene: (label, engine name, integrator, mujoco solver)."""
+    out = [{"label": f"inhouse {m}", "engine": "inhouse",
+            "integrator": f"{INHOUSE_INTEGRATOR}+{m}", "solver": None}
+           for m in contact_model_names("inhouse")]
+    if pile.dimension == 3:
+        out += [{"label": "mujoco newton (default)", "engine": "mujoco", "integrator": "euler",
+                 "solver": None},
+                {"label": "mujoco cg", "engine": "mujoco", "integrator": "euler", "solver": "cg"},
+                {"label": "pybullet maximal", "engine": "pybullet", "integrator": "maximal",
+                 "solver": None},
+                {"label": "pybullet multibody", "engine": "pybullet", "integrator": "multibody",
+                 "solver": None}]
+    else:
+        out += [{"label": "pymunk", "engine": "pymunk", "integrator": "position_first",
+                 "solver": None}]
+    return out
+
+
+def scenes(sizes: list[int], only: list[str] | None) -> list[tuple[str, callable]]:
+    out = [(f"spheres_bin_{n}", lambda n=n: pile_scenes.spheres(n)) for n in sizes]
+    out += [("spheres_ground_200", lambda: pile_scenes.spheres(200, walls=False)),
+            ("boxes_bin_200", lambda: pile_scenes.boxes(200)),
+            ("pile_2d_200", lambda: pile_scenes.pile_2d(200))]
+    return [s for s in out if not only or s[0] in only]
+
+
+# -- the worker: one cell, one scene ------------------------------------------------------------
+def _engine(name: str):
+    if name == "inhouse":
+        from crosscheck.engines.inhouse import InhouseEngine
+        return InhouseEngine()
+    if name == "mujoco":
+        from crosscheck.engines.mujoco import MujocoEngine
+        return MujocoEngine()
+    if name == "pybullet":
+        from crosscheck.engines.pybullet import PybulletEngine
+        return PybulletEngine()
+    from crosscheck.engines.pymunk import PymunkEngine
+    return PymunkEngine()
+
+
+def _worker(conn, pile, cell) -> None:
+    """Answers "accuracy" and "cost" commands for one cell until told to stop."""
+    from crosscheck.engines import driver
+
+    scene = pile.scene
+    if cell["solver"]:
+        scene = pile_scenes.with_mujoco_solver(pile, cell["solver"]).scene
+    engine = _engine(cell["engine"])
+    steps = None
+    while True:
+        cmd = conn.recv()
+        if cmd == "stop":
+            return
+        try:
+            if cmd == "accuracy":
+                t0 = time.perf_counter()
+                res = driver.run(engine, scene, cell["integrator"], DT, cost=None)
+                took = time.perf_counter() - t0
+                steps = res.trajectory.meta.get("steps")
+                conn.send({"accuracy_wall": took, "steps": steps,
+                           **soundness(pile, res.trajectory)})
+            else:
+                c = driver.measure_cost(lambda: engine.open(scene, cell["integrator"], DT),
+                                        steps, DT, driver.CostPlan(min_repeats=1, min_seconds=0.0,
+                                                                   max_repeats=1))
+                conn.send({"wall": c.wall[0], "cpu": c.cpu[0], "steps": c.steps})
+        except Exception as exc:  # reported as the cell's result, never hidden
+            conn.send({"error": f"{type(exc).__name__}: {exc}"[:400]})
+
+
+def soundness(pile, traj) -> dict:
+    from crosscheck.compare.contact_metrics import penetration
+
+    failure = traj.failure
+    com = traj.com[-1]
+    finite = bool(np.all(np.isfinite(traj.com)) and np.all(np.isfinite(traj.vel)))
+    out = {"failure": failure, "finite": finite, "t_end": float(traj.t[-1])}
+    if not finite:
+        return {**out, "in_bin": False, "escaped": None, "penetration_max": None, "sound": False}
+    up = com[:, -1]
+    inside = up > -pile_scenes.R  # above the ground
+    if pile.inner:
+        lo, hi = pile.inner[0::2], pile.inner[1::2]
+        for axis in range(len(lo)):
+            inside &= (com[:, axis] > lo[axis]) & (com[:, axis] < hi[axis])
+    t0 = time.perf_counter()
+    pen = penetration(pile.scene, traj)
+    depth = None
+    if pen.rows is not None and len(pen.rows.gap):
+        depth = float(max(0.0, -np.min(pen.rows.gap)))
+    elif pen.rows is not None:
+        depth = 0.0
+    v = np.linalg.norm(traj.vel[-1], axis=-1)
+    sound = (failure is None and bool(inside.all()) and depth is not None
+             and depth < PENETRATION_SOUND)
+    return {**out, "escaped": int((~inside).sum()), "in_bin": bool(inside.all()),
+            "penetration_max": depth, "penetration_seconds": time.perf_counter() - t0,
+            "speed_max_end": float(v.max()), "speed_mean_end": float(v.mean()),
+            "sound": bool(sound)}
+
+
+# -- the parent: interleaved rounds -------------------------------------------------------------
+class Cell:
+    def __init__(self, ctx, pile, spec):
+        self.spec = spec
+        self.parent, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker, args=(child, pile, spec), daemon=True)
+        self.proc.start()
+        self.result = {**spec, "walls": [], "cpus": []}
+        self.alive = True
+
+    def ask(self, cmd: str, cap: float):
+        if not self.alive:
+            return None
+        self.parent.send(cmd)
+        if not self.parent.poll(cap):
+            self.proc.kill()  # our own worker, by its handle
+            self.proc.join()
+            self.alive = False
+            self.result["capped"] = f"{cmd} ran longer than the cap of {cap:g} s: stopped"
+            return None
+        answer = self.parent.recv()
+        if "error" in answer:
+            self.result["error"] = answer["error"]
+            self.stop()
+            return None
+        return answer
+
+    def stop(self):
+        if self.alive:
+            self.parent.send("stop")
+            self.proc.join(timeout=30)
+            if self.proc.is_alive():
+                self.proc.kill()
+            self.alive = False
+
+
+def run_scene(name: str, build, repeats: int, cap: float) -> list[dict]:
+    pile = build()
+    ctx = mp.get_context("fork")  # the scene is inherited, not pickled (5000 bodies)
+    load0 = os.getloadavg()
+    cells = [Cell(ctx, pile, spec) for spec in cells_for(pile)]
+    for cell in cells:
+        ans = cell.ask("accuracy", cap)
+        if ans is not None:
+            cell.result.update(ans)
+        print(name, cell.spec["label"], {k: v for k, v in cell.result.items()
+                                        if k not in ("walls", "cpus")}, flush=True)
+    for _ in range(repeats):
+        for cell in cells:
+            ans = cell.ask("cost", cap)
+            if ans is not None:
+                cell.result["walls"].append(ans["wall"])
+                cell.result["cpus"].append(ans["cpu"])
+    for cell in cells:
+        cell.stop()
+    load1 = os.getloadavg()
+    rows = []
+    for cell in cells:
+        r = cell.result
+        r.update(scene=name, n=pile.n, dimension=pile.dimension, load_before=load0[0],
+                 load_after=load1[0])
+        if r["walls"]:
+            steps = r["steps"]
+            r["steps_per_s"] = steps / min(r["walls"])
+            r["steps_per_s_median"] = steps / statistics.median(r["walls"])
+            r["repeats"] = len(r["walls"])
+        elif "capped" in r:
+            done = r.get("steps") or int(pile.scene.run.duration / DT)
+            r["steps_per_s_below"] = done / cap
+        rows.append(r)
+        print(name, r["label"], r.get("steps_per_s"), r.get("capped") or r.get("error") or "",
+              flush=True)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[200, 1000, 5000])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--cap", type=float, default=240.0)
+    ap.add_argument("--only", nargs="*")
+    ap.add_argument("--out", type=Path, default=OUT)
+    args = ap.parse_args(argv)
+    import numba
+    meta = {"recorded": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": platform.machine(),
+            "cores": os.cpu_count(), "python": platform.python_version(),
+            "numba": numba.__version__, "repeats": args.repeats, "cap_seconds": args.cap,
+            "dt": DT, "engines": _versions(), "started_load": os.getloadavg()[0]}
+    rows = []
+    for name, build in scenes(args.sizes, args.only):
+        rows += run_scene(name, build, args.repeats, args.cap)
+        _write(args.out, meta, rows)  # after every scene: a stopped run keeps what it measured
+    meta["finished_load"] = os.getloadavg()[0]
+    _write(args.out, meta, rows)
+
+
+def _versions() -> dict:
+    out = {}
+    for mod in ("mujoco", "pybullet", "pymunk"):
+        try:
+            m = __import__(mod)
+            out[mod] = getattr(m, "__version__", None) or getattr(m, "version", None)
+        except ImportError:
+            out[mod] = None
+    return {k: str(v) for k, v in out.items()}
+
+
+def _write(out: Path, meta: dict, rows: list[dict]) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "piles.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1,
+                                               default=str))
+    (out / "piles.md").write_text(report(meta, rows))
+
+
+if __name__ == "__main__":
+    main()
