@@ -2,7 +2,8 @@
 PyBullet and Pymunk on the same scenes, in one run, with each run's soundness beside its speed.
 
     .venv/bin/python benchmarks/bench_piles.py [--sizes 200 1000 5000] [--repeats 3]
-                                               [--cap 240] [--only SCENE ...] [--out DIR]
+        [--duration 0.3] [--cap 120] [--warm-cap 900] [--accuracy-cap 300] [--peers-max-n 1000]
+        [--only SCENE ...] [--cells LABEL ...] [--out DIR]
 
 Scenes: tests/piles/pile_scenes.py (shared with tests/piles/test_pile_scenes.py): spheres into a
 bin (200, 1000, 5000), 200 spheres onto the bare ground, 200 cubes into a bin, a 2D pile of 200
@@ -19,15 +20,16 @@ Engines, through crosscheck's adapters and run driver only (engines/driver.py):
 * Pymunk on the 2D pile (the in-house models run there too).
 
 Per scene, every cell (engine + setting) lives in a worker process of its own for the whole
-scene: first the driver's accuracy pass (``driver.run(..., cost=None)``, 11 samples) gives the
-soundness figures; then ``--repeats`` rounds in which every cell in turn runs one repetition of
-the driver's cost pass (``driver.measure_cost``: a fresh session, one untimed warm-up step, then
-``advance`` over the run's steps timed without recording: docs/metrics.md "Cost"). The rounds
-interleave the cells so that the load of the shared machine falls on all of them alike; best and
-median of the repetitions are reported, with the load average before and after each scene.
-
-A cell whose one command (accuracy pass or one repetition) runs longer than ``--cap`` seconds is
-stopped (its worker killed) and reported as capped with the steps/s it cannot exceed.
+scene. Each worker first opens a session and takes one step (numba compilation or its cache,
+the engines' first calls; ``--warm-cap``). Then ``--repeats`` rounds in which every cell in turn
+runs one repetition of the driver's cost pass (``driver.measure_cost``: a fresh session, one
+untimed warm-up step, then ``advance`` over the run's steps timed without recording:
+docs/metrics.md "Cost"); the rounds interleave the cells so that the load of the shared machine
+falls on all of them alike; best and median are reported, with the load average before and
+after each scene. Last the driver's accuracy pass (``driver.run(..., cost=None)``, 11 samples)
+gives the soundness figures (``--accuracy-cap``). A repetition longer than ``--cap`` seconds is
+stopped (its worker killed) and the cell reported as capped, with the steps/s it cannot exceed.
+Peers are not run on piles above ``--peers-max-n`` (PEERS_NOT_RUN says why).
 
 Soundness at the end of the accuracy pass: no failure reported by the driver, every body finite,
 inside the bin (or above the ground for the open scene), and the deepest penetration of any pair
@@ -65,10 +67,19 @@ OUT = ROOT / "benchmarks" / "results"
 DT = pile_scenes.DT
 PENETRATION_SOUND = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
 INHOUSE_INTEGRATOR = "symplectic_euler"
+# Why the peers stop at --peers-max-n: both adapters enumerate Scene.contact_pairs() (every pair
+# of bodies, plus body-static and body-ground) in Python, MuJoCo's into one explicit <pair> each
+# (geoms have contype = conaffinity = 0, so the pair list is its whole contact set) and PyBullet's
+# into its read-back of the pair values; building the model and the accuracy pass's read-back
+# grow as N^2 (measured in piles.md: the workers' warm-up and accuracy-pass seconds at 200 and
+# 1000).
+PEERS_NOT_RUN = ("not run: the adapter enumerates every body pair in Python ({pairs} pairs "
+                 "here; MuJoCo's MJCF gets one explicit <pair> each)")
 
 
-def cells_for(pile) -> list[dict]:
-    """The engine settings run on a scene: (label, engine name, integrator, mujoco solver)."""
+def cells_for(pile, labels: list[str] | None = None) -> list[dict]:
+    """The engine settings run on a scene (label, engine, integrator, MuJoCo solver); with
+    ``labels``, those only."""
     out = [{"label": f"inhouse {m}", "engine": "inhouse",
             "integrator": f"{INHOUSE_INTEGRATOR}+{m}", "solver": None}
            for m in contact_model_names("inhouse")]
@@ -83,14 +94,16 @@ def cells_for(pile) -> list[dict]:
     else:
         out += [{"label": "pymunk", "engine": "pymunk", "integrator": "position_first",
                  "solver": None}]
-    return out
+    return [c for c in out if not labels or c["label"] in labels]
 
 
-def scenes(sizes: list[int], only: list[str] | None) -> list[tuple[str, callable]]:
-    out = [(f"spheres_bin_{n}", lambda n=n: pile_scenes.spheres(n)) for n in sizes]
-    out += [("spheres_ground_200", lambda: pile_scenes.spheres(200, walls=False)),
-            ("boxes_bin_200", lambda: pile_scenes.boxes(200)),
-            ("pile_2d_200", lambda: pile_scenes.pile_2d(200))]
+def scenes(sizes: list[int], only: list[str] | None, duration: float
+           ) -> list[tuple[str, callable]]:
+    d = duration
+    out = [(f"spheres_bin_{n}", lambda n=n: pile_scenes.spheres(n, duration=d)) for n in sizes]
+    out += [("spheres_ground_200", lambda: pile_scenes.spheres(200, walls=False, duration=d)),
+            ("boxes_bin_200", lambda: pile_scenes.boxes(200, duration=d)),
+            ("pile_2d_200", lambda: pile_scenes.pile_2d(200, duration=d))]
     return [s for s in out if not only or s[0] in only]
 
 
@@ -117,18 +130,27 @@ def _worker(conn, pile, cell) -> None:
     if cell["solver"]:
         scene = pile_scenes.with_mujoco_solver(pile, cell["solver"]).scene
     engine = _engine(cell["engine"])
-    steps = None
+    # The cost pass times the whole run (the rounds come before the accuracy pass, whose steps
+    # the driver would otherwise take): a run that fails part-way is timed until the engine
+    # gives up, and its soundness row says so.
+    steps = driver.sampling_plan(scene, DT).total_steps
     while True:
         cmd = conn.recv()
         if cmd == "stop":
             return
         try:
-            if cmd == "accuracy":
+            if cmd == "warm":  # numba compilation (or its cache) and the engines' first calls
+                t0 = time.perf_counter()
+                session = engine.open(scene, cell["integrator"], DT)
+                session.advance(1)
+                session.close()
+                conn.send({"warm_seconds": time.perf_counter() - t0})
+            elif cmd == "accuracy":
                 t0 = time.perf_counter()
                 res = driver.run(engine, scene, cell["integrator"], DT, cost=None)
                 took = time.perf_counter() - t0
-                steps = res.trajectory.meta.get("steps")
-                conn.send({"accuracy_wall": took, "steps": steps,
+                conn.send({"accuracy_wall": took,
+                           "accuracy_steps": res.trajectory.meta.get("steps"),
                            **soundness(pile, res.trajectory)})
             else:
                 c = driver.measure_cost(lambda: engine.open(scene, cell["integrator"], DT),
@@ -206,23 +228,39 @@ class Cell:
             self.alive = False
 
 
-def run_scene(name: str, build, repeats: int, cap: float) -> list[dict]:
+def run_scene(name: str, build, repeats: int, cap: float, labels=None, *,
+              warm_cap: float = 900.0, accuracy_cap: float = 300.0,
+              peers_max_n: int = 1000) -> list[dict]:
     pile = build()
+    specs = cells_for(pile, labels)
+    skipped = []
+    if pile.n > peers_max_n:
+        skipped = [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
+                    "not_run": PEERS_NOT_RUN.format(pairs=pile.n * (pile.n - 1) // 2)}
+                   for c in specs if c["engine"] != "inhouse"]
+        specs = [c for c in specs if c["engine"] == "inhouse"]
     ctx = mp.get_context("fork")  # the scene is inherited, not pickled (5000 bodies)
     load0 = os.getloadavg()
-    cells = [Cell(ctx, pile, spec) for spec in cells_for(pile)]
+    cells = [Cell(ctx, pile, spec) for spec in specs]
     for cell in cells:
-        ans = cell.ask("accuracy", cap)
+        ans = cell.ask("warm", warm_cap)
         if ans is not None:
             cell.result.update(ans)
-        print(name, cell.spec["label"], {k: v for k, v in cell.result.items()
-                                        if k not in ("walls", "cpus")}, flush=True)
     for _ in range(repeats):
         for cell in cells:
             ans = cell.ask("cost", cap)
             if ans is not None:
                 cell.result["walls"].append(ans["wall"])
                 cell.result["cpus"].append(ans["cpu"])
+                cell.result["steps"] = ans["steps"]
+    # Soundness last: a slow accuracy pass (recording, the adapters' read-back of every pair)
+    # that runs over its cap then costs the cell its soundness figures, not its timing.
+    for cell in cells:
+        ans = cell.ask("accuracy", accuracy_cap)
+        if ans is not None:
+            cell.result.update(ans)
+        print(name, cell.spec["label"], {k: v for k, v in cell.result.items()
+                                        if k not in ("walls", "cpus")}, flush=True)
     for cell in cells:
         cell.stop()
     load1 = os.getloadavg()
@@ -242,25 +280,38 @@ def run_scene(name: str, build, repeats: int, cap: float) -> list[dict]:
         rows.append(r)
         print(name, r["label"], r.get("steps_per_s"), r.get("capped") or r.get("error") or "",
               flush=True)
-    return rows
+    return rows + skipped
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[200, 1000, 5000])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--cap", type=float, default=240.0)
+    ap.add_argument("--cap", type=float, default=120.0)
+    # 0.3 s by default, not CONTACTS.md 3b's 1 s: the grid's gaps are 1 cm (spheres), so the
+    # layers land early and most timed steps are a pile in contact (piles.md gives the speeds at
+    # the end); a 5000-body pile at 1 s would hold the shared 2-core machine for an hour.
+    ap.add_argument("--duration", type=float, default=0.3)
     ap.add_argument("--only", nargs="*")
+    ap.add_argument("--warm-cap", type=float, default=900.0,
+                    help="s for a worker's first step (a first numba compilation takes minutes)")
+    ap.add_argument("--accuracy-cap", type=float, default=300.0)
+    ap.add_argument("--peers-max-n", type=int, default=1000,
+                    help="peers are not run on larger piles (see PEERS_NOT_RUN)")
+    ap.add_argument("--cells", nargs="*", help="labels of the cells to run (default: all)")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     import numba
     meta = {"recorded": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": platform.machine(),
             "cores": os.cpu_count(), "python": platform.python_version(),
             "numba": numba.__version__, "repeats": args.repeats, "cap_seconds": args.cap,
-            "dt": DT, "engines": _versions(), "started_load": os.getloadavg()[0]}
+            "dt": DT, "duration": args.duration, "engines": _versions(),
+            "started_load": os.getloadavg()[0]}
     rows = []
-    for name, build in scenes(args.sizes, args.only):
-        rows += run_scene(name, build, args.repeats, args.cap)
+    for name, build in scenes(args.sizes, args.only, args.duration):
+        rows += run_scene(name, build, args.repeats, args.cap, args.cells,
+                          warm_cap=args.warm_cap, accuracy_cap=args.accuracy_cap,
+                          peers_max_n=args.peers_max_n)
         _write(args.out, meta, rows)  # after every scene: a stopped run keeps what it measured
     meta["finished_load"] = os.getloadavg()[0]
     _write(args.out, meta, rows)

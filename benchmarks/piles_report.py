@@ -18,7 +18,13 @@ def _sps(r: dict) -> str:
     return "error" if r.get("error") else ""
 
 
+def _secs(x) -> str:
+    return "" if x is None else f"{x:.3g}"
+
+
 def _sound(r: dict) -> str:
+    if r.get("not_run"):
+        return r["not_run"]
     if r.get("error"):
         return "error: " + r["error"][:80]
     if "sound" not in r:
@@ -66,13 +72,15 @@ def report(meta: dict, rows: list[dict]) -> str:
         load = f"load {rs[0]['load_before']:.1f} before, {rs[0]['load_after']:.1f} after"
         lines += ["", f"## {scene} (N = {rs[0]['n']}, {steps} steps; {load})", "",
                   "| engine / setting | steps/s best | median | n | sound at the end | "
+                  "open + 1st step s | accuracy pass s | "
                   + " | ".join(f"/ {c}" for c in cols) + " |",
-                  "|---|---|---|---|---|" + "---|" * len(cols)]
+                  "|---|---|---|---|---|---|---|" + "---|" * len(cols)]
         for r in rs:
             med = f"{r['steps_per_s_median']:.0f}" if r.get("steps_per_s_median") else ""
             lines.append(f"| {r['label']} | {_sps(r)} | {med} | {r.get('repeats', 0)} | "
-                         f"{_sound(r)} | " + " | ".join(_ratio(r, peers[c]) for c in cols)
-                         + " |")
+                         f"{_sound(r)} | {_secs(r.get('warm_seconds'))} | "
+                         f"{_secs(r.get('accuracy_wall'))} | "
+                         + " | ".join(_ratio(r, peers[c]) for c in cols) + " |")
     lines += _scaling(rows) + _targets(by_scene)
     return "\n".join(lines) + "\n"
 
