@@ -233,11 +233,13 @@ def run_scene(name: str, build, repeats: int, cap: float, labels=None, *,
               peers_max_n: int = 1000) -> list[dict]:
     pile = build()
     specs = cells_for(pile, labels)
-    skipped = []
+    skipped = [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
+                "not_run": "left out of this invocation (--cells; see the docs)"}
+               for c in cells_for(pile) if c not in specs]
     if pile.n > peers_max_n:
-        skipped = [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
-                    "not_run": PEERS_NOT_RUN.format(pairs=pile.n * (pile.n - 1) // 2)}
-                   for c in specs if c["engine"] != "inhouse"]
+        skipped += [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
+                     "not_run": PEERS_NOT_RUN.format(pairs=pile.n * (pile.n - 1) // 2)}
+                    for c in specs if c["engine"] != "inhouse"]
         specs = [c for c in specs if c["engine"] == "inhouse"]
     ctx = mp.get_context("fork")  # the scene is inherited, not pickled (5000 bodies)
     load0 = os.getloadavg()
@@ -268,7 +270,8 @@ def run_scene(name: str, build, repeats: int, cap: float, labels=None, *,
     for cell in cells:
         r = cell.result
         r.update(scene=name, n=pile.n, dimension=pile.dimension, load_before=load0[0],
-                 load_after=load1[0])
+                 load_after=load1[0], recorded=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+                 duration=pile.scene.run.duration)
         if r["walls"]:
             steps = r["steps"]
             r["steps_per_s"] = steps / min(r["walls"])
@@ -307,8 +310,15 @@ def main(argv=None):
             "numba": numba.__version__, "repeats": args.repeats, "cap_seconds": args.cap,
             "dt": DT, "duration": args.duration, "engines": _versions(),
             "started_load": os.getloadavg()[0]}
+    todo = scenes(args.sizes, args.only, args.duration)
     rows = []
-    for name, build in scenes(args.sizes, args.only, args.duration):
+    if args.only and (args.out / "piles.json").exists():
+        # A run of some scenes only replaces those scenes' rows and keeps the others (each
+        # scene's ratios come from one invocation; its meta is kept per row).
+        old = json.loads((args.out / "piles.json").read_text())
+        names = {name for name, _ in todo}
+        rows = [r for r in old["rows"] if r["scene"] not in names]
+    for name, build in todo:
         rows += run_scene(name, build, args.repeats, args.cap, args.cells,
                           warm_cap=args.warm_cap, accuracy_cap=args.accuracy_cap,
                           peers_max_n=args.peers_max_n)
