@@ -303,7 +303,12 @@ def main(argv=None):
                     help="peers are not run on larger piles (see PEERS_NOT_RUN)")
     ap.add_argument("--cells", nargs="*", help="labels of the cells to run (default: all)")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--merge", nargs="+", type=Path,
+                    help="run nothing: combine these piles.json files (a later file's scenes "
+                         "replace an earlier one's) into --out")
     args = ap.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.out)
     import numba
     meta = {"recorded": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": platform.machine(),
             "cores": os.cpu_count(), "python": platform.python_version(),
@@ -325,6 +330,21 @@ def main(argv=None):
         _write(args.out, meta, rows)  # after every scene: a stopped run keeps what it measured
     meta["finished_load"] = os.getloadavg()[0]
     _write(args.out, meta, rows)
+
+
+def merge(files: list[Path], out: Path) -> None:
+    """Several invocations' results as one page (e.g. two scene sets run side by side); each
+    row keeps the load and time of its own scene, and every ratio is within one scene."""
+    metas, rows = [], []
+    for f in files:
+        doc = json.loads(f.read_text())
+        new = {r["scene"] for r in doc["rows"]}
+        rows = [r for r in rows if r["scene"] not in new] + doc["rows"]
+        metas.append(doc["meta"])
+    meta = dict(metas[0])
+    meta["recorded"] = ", ".join(dict.fromkeys(m["recorded"] for m in metas))
+    meta["invocations"] = metas
+    _write(out, meta, rows)
 
 
 def _versions() -> dict:
