@@ -3,9 +3,13 @@
     .venv/bin/python benchmarks/profile_piles.py [--sizes 200 1000 5000] [--models soft_step
         sequential_impulse] [--settle 0.3] [--steps 50] [--repeats 3] [--out FILE]
 
-The pile of benchmarks/bench_piles.py (tests/piles/pile_scenes.py, spheres into a bin) is run
-through the in-house adapter for ``--settle`` s (the benchmark's duration), so the state is the
-one the benchmark times at its end. From copies of that state, best of ``--repeats``, per step:
+The velocity-level models only (their stepper exposes detection and the step kernel apart;
+``penalty`` computes its contact forces inside every force evaluation, so its detection cannot
+be timed apart through the same entry points). The pile of benchmarks/bench_piles.py
+(tests/piles/pile_scenes.py, spheres into a bin) is run through the in-house adapter for
+``--settle`` s (the benchmark's duration), so the state is the one the benchmark times at its
+end; sequential_impulse's PGS sweeps per step are counted over the timed steps. From
+copies of that state, best of ``--repeats``, per step:
 
 * ``step``: the session's ``advance(steps)`` (the fused compiled detect + step loop);
 * ``detect``: ``sim.collide.detect3d`` on the same state, called ``steps`` times from one
@@ -79,13 +83,23 @@ def profile(n: int, model: str, settle: float, steps: int, repeats: int) -> dict
             velocity3d.step3d(*session.sim.model.kernel_args(), None, st.contacts, st.rows,
                               st.settings, sc, s.x, s.rot, s.P, s.L, pile_scenes.DT)
 
+    stats0 = st.rows.stats.copy()  # (steps, sweeps summed, max): sequential_impulse counts
     t_step = _best(full, repeats) / steps
+    d_steps = int(st.rows.stats[0] - stats0[0])
+    sweeps = float(st.rows.stats[1] - stats0[1]) / d_steps if d_steps > 0 else None
     t_detect = _best(detect, repeats) / steps
     t_int = _best(integrate, repeats) / steps
     session.close()
     return {"n": n, "model": model, "contact_rows": rows_detected, "step_s": t_step,
             "detect_s": t_detect, "integrate_s": t_int,
-            "solve_s": t_step - t_detect - t_int, "load": os.getloadavg()[0]}
+            "solve_s": t_step - t_detect - t_int, "sweeps_per_step": sweeps,
+            "sweeps_max_setting": st.settings.iterations, "load": os.getloadavg()[0]}
+
+
+def _sweeps(r: dict) -> str:
+    if r.get("sweeps_per_step") is None:
+        return "(not counted)"
+    return f"{r['sweeps_per_step']:.0f} ({r['sweeps_max_setting']})"
 
 
 def markdown(meta: dict, rows: list[dict]) -> str:
@@ -96,14 +110,15 @@ def markdown(meta: dict, rows: list[dict]) -> str:
              "alone; solve = step - detect - integrate). Shared 2-core machine: load average "
              "in the last column.", "",
              "| model | N | contact rows | step ms | detect ms (%) | solve ms (%) | "
-             "integrate ms (%) | us per body-step | load |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "integrate ms (%) | us per body-step | PGS sweeps per step (cap) | load |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r["step_s"]
         pct = [f"{r[k] * 1e3:.3f} ({100 * r[k] / s:.0f} %)"
                for k in ("detect_s", "solve_s", "integrate_s")]
         lines.append(f"| {r['model']} | {r['n']} | {r['contact_rows']} | {s * 1e3:.3f} | "
-                     + " | ".join(pct) + f" | {s / r['n'] * 1e6:.2f} | {r['load']:.1f} |")
+                     + " | ".join(pct) + f" | {s / r['n'] * 1e6:.2f} | {_sweeps(r)} | "
+                     f"{r['load']:.1f} |")
     return "\n".join(lines) + "\n"
 
 
