@@ -34,8 +34,8 @@ Peers are not run on piles above ``--peers-max-n`` (PEERS_NOT_RUN says why).
 Soundness at the end of the accuracy pass: no failure reported by the driver, every body finite,
 inside the bin (or above the ground for the open scene), and the deepest penetration of any pair
 over the samples from crosscheck's own contact metrics (compare/contact_metrics.py). "sound"
-means all of these, with a penetration under 5 mm (r/10: the bound the committed sphere-pile case
-gives MuJoCo, whose soft contact sinks by design; the others are held to 1 mm there).
+(piles_report.is_sound) means all of these, with a penetration under the committed sphere-pile
+case's bound: 1 mm, MuJoCo 5 mm (its soft contact sinks by design).
 
 Writes ``benchmarks/results/piles.json`` and ``benchmarks/results/piles.md``.
 """
@@ -65,7 +65,7 @@ from crosscheck.names import contact_model_names  # noqa: E402
 
 OUT = ROOT / "benchmarks" / "results"
 DT = pile_scenes.DT
-PENETRATION_SOUND = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
+PENETRATION_LOOSEST = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
 INHOUSE_INTEGRATOR = "symplectic_euler"
 # Why the peers stop at --peers-max-n: both adapters enumerate Scene.contact_pairs() (every pair
 # of bodies, plus body-static and body-ground) in Python, MuJoCo's into one explicit <pair> each
@@ -184,8 +184,10 @@ def soundness(pile, traj) -> dict:
     elif pen.rows is not None:
         depth = 0.0
     v = np.linalg.norm(traj.vel[-1], axis=-1)
+    # The verdict with the case's per-engine bound is the report's (piles_report.is_sound);
+    # this one, at MuJoCo's 5 mm for every engine, is the loosest.
     sound = (failure is None and bool(inside.all()) and depth is not None
-             and depth < PENETRATION_SOUND)
+             and depth < PENETRATION_LOOSEST)
     return {**out, "escaped": int((~inside).sum()), "in_bin": bool(inside.all()),
             "penetration_max": depth, "penetration_seconds": time.perf_counter() - t0,
             "speed_max_end": float(v.max()), "speed_mean_end": float(v.mean()),
@@ -342,20 +344,22 @@ def merge(files: list[Path], out: Path) -> None:
         rows = [r for r in rows if r["scene"] not in new] + doc["rows"]
         metas.append(doc["meta"])
     meta = dict(metas[0])
+    meta["engines"] = _versions()  # pybullet has no __version__: earlier files said None
     meta["recorded"] = ", ".join(dict.fromkeys(m["recorded"] for m in metas))
     meta["invocations"] = metas
     _write(out, meta, rows)
 
 
 def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
     out = {}
-    for mod in ("mujoco", "pybullet", "pymunk"):
+    for dist in ("mujoco", "pybullet", "pymunk"):
         try:
-            m = __import__(mod)
-            out[mod] = getattr(m, "__version__", None) or getattr(m, "version", None)
-        except ImportError:
-            out[mod] = None
-    return {k: str(v) for k, v in out.items()}
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            out[dist] = None
+    return out
 
 
 def _write(out: Path, meta: dict, rows: list[dict]) -> None:
