@@ -67,6 +67,7 @@ OUT = ROOT / "benchmarks" / "results"
 DT = pile_scenes.DT
 PENETRATION_LOOSEST = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
 INHOUSE_INTEGRATOR = "symplectic_euler"
+DEFAULT_DURATION = 0.3  # s (main: why)
 # Why the peers stop at --peers-max-n: both adapters enumerate Scene.contact_pairs() (every pair
 # of bodies, plus body-static and body-ground) in Python, MuJoCo's into one explicit <pair> each
 # (geoms have contype = conaffinity = 0, so the pair list is its whole contact set) and PyBullet's
@@ -104,7 +105,10 @@ def scenes(sizes: list[int], only: list[str] | None, duration: float
     out += [("spheres_ground_200", lambda: pile_scenes.spheres(200, walls=False, duration=d)),
             ("boxes_bin_200", lambda: pile_scenes.boxes(200, duration=d)),
             ("pile_2d_200", lambda: pile_scenes.pile_2d(200, duration=d))]
-    return [s for s in out if not only or s[0] in only]
+    out = [s for s in out if not only or s[0] in only]
+    if d != DEFAULT_DURATION:  # another duration is another scene in the results
+        out = [(f"{name}_{d:g}s", build) for name, build in out]
+    return out
 
 
 # -- the worker: one cell, one scene ------------------------------------------------------------
@@ -296,7 +300,7 @@ def main(argv=None):
     # 0.3 s by default, not CONTACTS.md 3b's 1 s: the grid's gaps are 1 cm (spheres), so the
     # layers land early and most timed steps are a pile in contact (piles.md gives the speeds at
     # the end); a 5000-body pile at 1 s would hold the shared 2-core machine for an hour.
-    ap.add_argument("--duration", type=float, default=0.3)
+    ap.add_argument("--duration", type=float, default=DEFAULT_DURATION)
     ap.add_argument("--only", nargs="*")
     ap.add_argument("--warm-cap", type=float, default=900.0,
                     help="s for a worker's first step (a first numba compilation takes minutes)")
