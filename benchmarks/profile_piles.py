@@ -59,8 +59,10 @@ def _best(fn, repeats: int) -> float:
     return best
 
 
-def profile(n: int, model: str, settle: float, steps: int, repeats: int) -> dict:
-    pile = pile_scenes.spheres(n, duration=settle)
+def profile(n: int, model: str, settle: float, steps: int, repeats: int,
+            scene: str = "spheres") -> dict:
+    build = pile_scenes.spheres if scene == "spheres" else pile_scenes.boxes
+    pile = build(n, duration=settle)
     session = InhouseEngine().open(pile.scene, f"symplectic_euler+{model}", pile_scenes.DT)
     session.advance(int(round(settle / pile_scenes.DT)))
     st = session.contact
@@ -90,7 +92,8 @@ def profile(n: int, model: str, settle: float, steps: int, repeats: int) -> dict
     t_detect = _best(detect, repeats) / steps
     t_int = _best(integrate, repeats) / steps
     session.close()
-    return {"n": n, "model": model, "contact_rows": rows_detected, "step_s": t_step,
+    return {"scene": pile.name, "n": n, "model": model, "contact_rows": rows_detected,
+            "step_s": t_step,
             "detect_s": t_detect, "integrate_s": t_int,
             "solve_s": t_step - t_detect - t_int, "sweeps_per_step": sweeps,
             "sweeps_max_setting": st.settings.iterations, "load": os.getloadavg()[0]}
@@ -105,18 +108,20 @@ def _sweeps(r: dict) -> str:
 def markdown(meta: dict, rows: list[dict]) -> str:
     lines = ["# In-house step on the sphere pile: where the time goes", "",
              f"Recorded {meta['recorded']} by `benchmarks/profile_piles.py`: the pile of "
-             f"`bench_piles.py` after {meta['settle']:g} s, best of {meta['repeats']} runs of "
+             f"`bench_piles.py` (the scene column) after {meta['settle']:g} s, best of "
+             f"{meta['repeats']} runs of "
              f"{meta['steps']} steps from the same state (detection and integration timed "
              "alone; solve = step - detect - integrate). Shared 2-core machine: load average "
              "in the last column.", "",
-             "| model | N | contact rows | step ms | detect ms (%) | solve ms (%) | "
+             "| scene | model | N | contact rows | step ms | detect ms (%) | solve ms (%) | "
              "integrate ms (%) | us per body-step | PGS sweeps per step (cap) | load |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r["step_s"]
         pct = [f"{r[k] * 1e3:.3f} ({100 * r[k] / s:.0f} %)"
                for k in ("detect_s", "solve_s", "integrate_s")]
-        lines.append(f"| {r['model']} | {r['n']} | {r['contact_rows']} | {s * 1e3:.3f} | "
+        lines.append(f"| {r.get('scene', 'spheres_bin')} | {r['model']} | {r['n']} | "
+                     f"{r['contact_rows']} | {s * 1e3:.3f} | "
                      + " | ".join(pct) + f" | {s / r['n'] * 1e6:.2f} | {_sweeps(r)} | "
                      f"{r['load']:.1f} |")
     return "\n".join(lines) + "\n"
@@ -128,6 +133,8 @@ def main(argv=None):
     ap.add_argument("--models", nargs="+", default=["soft_step", "sequential_impulse"])
     ap.add_argument("--settle", type=float, default=0.3)
     ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--scene", choices=["spheres", "boxes"], default="spheres",
+                    help="spheres into a bin, or cubes into a bin (pile_scenes.boxes)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results"
                     / "piles_profile.md")
@@ -137,7 +144,7 @@ def main(argv=None):
     rows = []
     for model in args.models:
         for n in args.sizes:
-            rows.append(profile(n, model, args.settle, args.steps, args.repeats))
+            rows.append(profile(n, model, args.settle, args.steps, args.repeats, args.scene))
             print(rows[-1], flush=True)
             args.out.write_text(markdown(meta, rows))
             args.out.with_suffix(".json").write_text(json.dumps({"meta": meta, "rows": rows},
