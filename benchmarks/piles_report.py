@@ -105,8 +105,36 @@ def report(meta: dict, rows: list[dict]) -> str:
                          f"{_sound(r)} | {_secs(r.get('warm_seconds'))} | "
                          f"{_secs(r.get('accuracy_wall'))} | "
                          + " | ".join(_ratio(r, peers[c]) for c in cols) + " |")
-    lines += _scaling(rows) + _targets(by_scene)
+    lines += _summary(by_scene) + _scaling(rows) + _targets(by_scene)
     return "\n".join(lines) + "\n"
+
+
+def _summary(by_scene: dict[str, list[dict]]) -> list[str]:
+    """Every scene on one line: steps/s per cell; ! marks a run not sound at the end, "-" a
+    cell not run, "cap" one stopped in the warm-up."""
+    labels = list(dict.fromkeys(r["label"] for rs in by_scene.values() for r in rs))
+    lines = ["", "## Summary", "",
+             "Steps/s (best of the interleaved repetitions); ! = not sound at the end (failure, "
+             "a body out of the bin, or deeper than the bound), < x = stopped at the 120 s cap "
+             "on one repetition, cap = not opened within the 900 s warm-up cap, - = not run "
+             "(see the scene's table).", "",
+             "| scene | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+    for scene, rs in by_scene.items():
+        get = {r["label"]: r for r in rs}
+        cells = []
+        for lab in labels:
+            r = get.get(lab)
+            if r is None or r.get("not_run"):
+                cells.append("-")
+            elif r.get("steps_per_s"):
+                mark = "" if ("sound" in r and is_sound(r)) else " !"
+                cells.append(f"{r['steps_per_s']:.0f}{mark}")
+            elif _cost_capped(r):
+                cells.append(f"< {r['steps_per_s_below']:.2g}")
+            else:
+                cells.append("cap" if r.get("capped") else "error")
+        lines.append(f"| {scene} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _scaling(rows: list[dict]) -> list[str]:
