@@ -90,3 +90,15 @@ def test_inhouse_keeps_the_pile_in_the_bin():
     assert com[:, 2].max() < 1.0
     gap = penetration(pile.scene, traj).rows.gap
     assert -gap.min() < 1e-3
+
+
+def test_mujoco_solver_option_reaches_the_model():
+    """[engine_options.mujoco] solver = "cg" (the benchmark's fastest MuJoCo setting) is what
+    the compiled model steps with; the default stays Newton."""
+    from crosscheck.engines.mujoco import MujocoEngine
+
+    pile = spheres(20, duration=0.01)
+    for scene, want in ((pile.scene, "mjSOL_NEWTON"),
+                        (with_mujoco_solver(pile, "cg").scene, "mjSOL_CG")):
+        traj = run(MujocoEngine(), scene, "euler", DT, cost=None).trajectory
+        assert traj.meta["effective"]["contact"]["solver"] == want
