@@ -39,6 +39,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rigid.py
 	$(BIN)/python benchmarks/bench_cost.py
 	$(BIN)/python benchmarks/bench_fluid.py
+	$(BIN)/python benchmarks/bench_piles.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -107,6 +107,10 @@ OPTIONS: dict[str, tuple[tuple[Any, ...], Any]] = {
     "align_free": ((True, False), False),
     "drag": (("auto", "per_step"), "auto"),
     "stepping": (("compiled", "nstep"), "compiled"),
+    # Contact scenes: the constraint solver. Newton (MuJoCo's default) builds a dense Hessian over
+    # all degrees of freedom, so a pile of 1000 free bodies steps 35x slower than with CG, which
+    # reaches the same state (CONTACTS.md 3b; benchmarks/results/piles.md).
+    "solver": (("newton", "cg", "pgs"), "newton"),
     # [effects] medium: which of MuJoCo's two fluid models acts (docs/engines.md, "Medium").
     "fluid_model": (("inertia_box", "ellipsoid"), "inertia_box"),
 }
@@ -292,7 +296,7 @@ CONTACT_OPTIONS: dict[str, Any] = {
     # No noslip pass: with elliptic cones it spoils kinetic friction (+10 to +86 %), and with
     # pyramidal cones and mu ~ 0 it explodes (trap C5).
     "noslip_iterations": 0,
-    "solver": "mjSOL_NEWTON",
+    "solver": "mjSOL_NEWTON",  # the default of [engine_options.mujoco] solver
     "iterations": 100,
     "tolerance": 1e-8,
     "ls_iterations": 50,
@@ -735,7 +739,8 @@ class MujocoModel:
             opt.cone = int(getattr(mujoco.mjtCone, c["cone"]))
             opt.impratio = c["impratio"]
             opt.noslip_iterations = c["noslip_iterations"]
-            opt.solver = int(getattr(mujoco.mjtSolver, c["solver"]))
+            opt.solver = int(getattr(mujoco.mjtSolver,
+                                     f"mjSOL_{self.options['solver'].upper()}"))
             opt.iterations = c["iterations"]
             opt.tolerance = c["tolerance"]
             opt.ls_iterations = c["ls_iterations"]
