@@ -230,6 +230,63 @@ def test_a_structure_that_collapses_or_gains_energy_is_unstable_for_the_frontier
     assert stability(falling) == "pass"
 
 
+def test_a_structure_without_limits_still_fails_by_falling_or_gaining_energy():
+    # mass_ratio_1000 sets no tolerance at all (its drift is a result to report), so no
+    # rest_drift_max limit says it must stand: before must_stand, a 1000 kg box that squeezed
+    # the light one out and an energy-pumping solver were both "stable" there.
+    from crosscheck.study.sweep import STRUCTURE_ENERGY_GAIN, must_stand, stability
+
+    heavy = load_case(CASES / "contact" / "mass_ratio_1000.toml")
+    assert not heavy.tolerances and must_stand(heavy)
+    assert must_stand(load_case(CASES / "contact" / "pyramid_2d.toml"))
+    # A ball dropped from rest that bounces to rest is no structure.
+    assert not must_stand(load_case(CASES / "contact" / "bounce_resting.toml"))
+    assert not must_stand(load_case(CASES / "rigid3d" / "spring_anchor.toml"))
+
+    def cell(**metrics):
+        return {"engine": "pybullet", "integrator": "maximal", "dt": 0.01, "status": "pass",
+                "metrics": {n: {"value": v} for n, v in metrics.items()}}
+
+    fell = cell(energy_gain=0.0, collapse_time=0.42)
+    assert stability(fell, stands=True) == "collapsed"
+    assert stability(fell) == "pass"  # without the scene: no limit, no structure
+    pumped = cell(energy_gain=3 * STRUCTURE_ENERGY_GAIN)
+    assert stability(pumped, stands=True) == "gained_energy"
+    assert stability(cell(energy_gain=0.5 * STRUCTURE_ENERGY_GAIN), stands=True) == "pass"
+
+
+def test_a_fall_inside_the_settle_window_counts_as_a_collapse():
+    # At a large step the settle window (the first 10 % of the run) can hold the whole fall:
+    # the heavy box is on the ground by then and lies still, so collapse_time (measured from
+    # the settled pose) stays unset; collapse_time_start (from the starting pose) catches it.
+    from crosscheck.study.sweep import analyse, stability
+
+    def cell(dt, start=None):
+        metrics = {"rest_drift_max": {"value": 1e-5, "limit": 1.5e-3},
+                   "energy_gain": {"value": 0.0}}
+        if start is not None:
+            metrics["collapse_time_start"] = {"value": start}
+        return {"engine": "inhouse", "integrator": "rk4+penalty", "dt": dt, "status": "pass",
+                "metrics": metrics}
+
+    cells = [cell(0.04, start=0.04), cell(0.02), cell(0.01)]
+    assert stability(cells[0]) == "collapsed"
+    _, (series,) = analyse(cells, "rest_drift_max")
+    assert (series.largest_stable_dt, series.smallest_unstable_dt) == (0.02, 0.04)
+    assert series.runs[0]["status"] == "collapsed" and series.runs[0]["time"] == 0.04
+
+
+def test_the_search_halves_below_a_step_that_fails():
+    # Unstable at every sweep step: halve (whole step counts) down to the floor, so the series
+    # gets a bracket instead of "below the smallest step run".
+    from crosscheck.commands.sweep import next_probe
+
+    assert next_probe(1.0, None, 1e-3, 0.1, 0.05, floor=1e-4) == pytest.approx(5e-4)
+    assert next_probe(1.0, None, 1e-3, 0.1, 0.05, floor=None) is None
+    assert next_probe(1.0, None, 1e-4, 0.1, 0.05, floor=1e-4) is None  # at the floor
+    assert next_probe(1.0, None, 1.5e-4, 0.1, 0.05, floor=1e-4) is None  # 7.5e-5 is below it
+
+
 @pytest.mark.parametrize("option", [["--target", "-1"], ["--max-dt", "-0.1"],
                                     ["--frontier-width", "0"], ["--frontier-rounds", "-2"]])
 def test_sweep_refuses_a_meaningless_option_before_running(option, tmp_path, capsys):
