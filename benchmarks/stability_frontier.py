@@ -1,0 +1,157 @@
+"""Largest stable step of every engine on the contact structures (issue 11, point 6).
+
+    PYTHONPATH=src .venv/bin/python benchmarks/stability_frontier.py [--run CASE ...]
+                                                                    [--out benchmarks/results]
+
+``--run CASE``: run ``crosscheck sweep`` on that case (a stem of :data:`CASES`; ``all`` for every
+one) with the options below and copy its ``sweep.md`` and ``sweep.json`` to
+``benchmarks/results/stability/<case>/``. Without ``--run``, nothing is run. Either way the
+summary ``benchmarks/results/stability.md`` (and ``.json``) is rebuilt from every committed
+``sweep.json`` there: per case and engine/integrator the largest stable step, the smallest
+failing step, what failed there (blow-up, collapse, energy gain, error) and when (the blow-up's
+or the fall's time, s), and the bracket's relative width. Every figure comes from the sweeps.
+
+Why these options (the sweep's own, docs/reports.md "crosscheck sweep"):
+
+* ``--dts 1e-3``: the cases' own step is the one sweep step; the frontier search doubles from it
+  (up to the cap, the duration / 10: 0.5 s for the stack, 0.2 s for the mass ratios, 0.1 s for
+  the pyramid) and halves below it when it already fails (down to 1.25e-4 s), then bisects on
+  the number of steps to ``--frontier-width 0.05``: the reported bracket is at most 5 % wide
+  unless whole step counts are adjacent (said in the table).
+* ``--no-cost``: the frontier needs verdicts only; the cost pass would time every probe three
+  times more on a machine shared by four engineers (one running a speed benchmark).
+* ``--workers 1``: the same reason.
+* integrators: every MuJoCo integrator and both PyBullet modes on the 3D cases (cheap: a few
+  bodies); the in-house engine one pairing per contact model (its first pairing, the one a bare
+  model name runs: ``symplectic_euler+soft_step``, ``symplectic_euler+sequential_impulse``,
+  ``rk4+penalty``, ``rk4+impulse_lcp``), not all 18 pairings: the other integrators change the
+  smooth part of the step, not the contact model whose stability is measured, and 18 x 4
+  searches do not fit the CPU at hand. The 210-box pyramid: MuJoCo ``euler`` only (the default;
+  its other integrators differ in the smooth dynamics), PyBullet multibody (the only mode in
+  2D), Pymunk, and the four in-house pairings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+INHOUSE = ["inhouse.symplectic_euler+soft_step", "inhouse.symplectic_euler+sequential_impulse",
+           "inhouse.rk4+penalty", "inhouse.rk4+impulse_lcp"]
+MUJOCO_ALL = ["mujoco.euler", "mujoco.implicitfast", "mujoco.implicit", "mujoco.rk4",
+              "mujoco.discrete"]
+PYBULLET_3D = ["pybullet.multibody", "pybullet.maximal"]
+CASES = {
+    "stack_10": [*INHOUSE, *MUJOCO_ALL, *PYBULLET_3D],
+    "mass_ratio_100": [*INHOUSE, *MUJOCO_ALL, *PYBULLET_3D],
+    "mass_ratio_1000": [*INHOUSE, *MUJOCO_ALL, *PYBULLET_3D],
+    "pyramid_2d": [*INHOUSE, "mujoco.euler", "pybullet.multibody", "pymunk.position_first"],
+}
+SWEEP_OPTIONS = ["--dts", "1e-3", "--no-cost", "--workers", "1", "--frontier-width", "0.05",
+                 "--progress", "plain"]
+
+
+def run_sweep(case: str, results: Path, scratch: Path, integrators: list[str] | None) -> None:
+    out = scratch / case
+    cmd = [sys.executable, "-c", "import sys; from crosscheck.cli import main; "
+           "sys.exit(main(sys.argv[1:]))", "sweep", f"cases/contact/{case}.toml",
+           "--integrators", ",".join(integrators or CASES[case]), "--out", str(out),
+           *SWEEP_OPTIONS]
+    print(" ".join(cmd), flush=True)
+    subprocess.run(cmd, check=True, cwd=ROOT)
+    dest = results / "stability" / case
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in ("sweep.md", "sweep.json"):
+        shutil.copy(out / name, dest / name)
+    # The command line that made them, next to them.
+    (dest / "command.txt").write_text("crosscheck " + " ".join(cmd[3:]) + "\n")
+
+
+def _failure(run: dict) -> str:
+    what = {"blowup": "blow-up", "collapsed": "collapse", "gained_energy": "energy gain",
+            "error": "error", "timeout": "timeout"}.get(run["status"], run["status"])
+    parts = [what]
+    if run.get("time") is not None:
+        parts.append(f"at t = {run['time']:.3g} s")
+    if run["status"] == "gained_energy" and run.get("energy_gain") is not None:
+        parts.append(f"(gain {run['energy_gain']:.3g})")
+    if run["status"] in ("error", "timeout") and run.get("reason"):
+        parts.append(f"({run['reason'][:60]})")
+    return " ".join(parts)
+
+
+def summarise(results: Path) -> tuple[str, dict]:
+    lines = ["# Largest stable step on the contact structures",
+             "",
+             "Made by `benchmarks/stability_frontier.py` from the committed sweeps in "
+             "`benchmarks/results/stability/<case>/sweep.json` (each folder's `command.txt` "
+             "is the sweep's command line). Stable: no blow-up, error or timeout; no body "
+             "left a ball of 0.1 x its size around its starting or settled position "
+             "(`collapse_time_start`, `collapse_time`); energy gain within the case's limit, "
+             "else 1e-2 of `S_E` (docs/reports.md, \"crosscheck sweep\"). The bracket is "
+             "found by doubling from the case's dt 1e-3 s (halving below it when it fails), "
+             "then bisection on the number of steps to 5 % relative width.", ""]
+    doc: dict = {"cases": {}}
+    for case in CASES:
+        path = results / "stability" / case / "sweep.json"
+        if not path.is_file():
+            lines += [f"## {case}", "", "not run (no sweep.json committed)", ""]
+            continue
+        data = json.loads(path.read_text())
+        fr = data["frontier"]
+        lines += [f"## {case} ({data['case']})", "",
+                  f"Cap {fr['cap']:.4g} s, floor {fr.get('floor', float('nan')):.4g} s, "
+                  f"{fr['rounds']} search round(s) of at most {fr['max_rounds']}.", "",
+                  "| engine-integrator | largest stable dt (s) | smallest failing dt (s) | "
+                  "what failed there | width | frontier |", "|---|---|---|---|---|---|"]
+        rows = []
+        for s in data["series"]:
+            label = f"{s['engine']}-{s['integrator']}"
+            if s.get("not_applicable"):
+                lines.append(f"| {label} | n/a | n/a | not applicable: "
+                             f"{s['not_applicable'][:60]} | | |")
+                continue
+            lo, hi = s["largest_stable_dt"], s["smallest_unstable_dt"]
+            fail = next((r for r in s.get("runs", []) if hi is not None and
+                         abs(r["dt"] - hi) <= 1e-9 * hi), None)
+            width = f"{(hi - lo) / lo:.1%}" if lo and hi else "-"
+            lines.append(f"| {label} | {lo:.5g} | " if lo else f"| {label} | none | ")
+            lines[-1] += (f"{hi:.5g} | " if hi else "none up to the cap | ")
+            lines[-1] += (f"{_failure(fail)} | " if fail else "- | ") + f"{width} | " \
+                f"{s['frontier']} |"
+            rows.append({"series": label, "largest_stable_dt": lo, "smallest_unstable_dt": hi,
+                         "failure": fail, "frontier": s["frontier"]})
+        doc["cases"][case] = {"case": data["case"], "frontier": fr, "series": rows}
+        lines.append("")
+    return "\n".join(lines), doc
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--run", nargs="*", default=[], metavar="CASE")
+    ap.add_argument("--integrators", default=None, metavar="X,Y",
+                    help="only these series of the case (a partial rerun)")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    ap.add_argument("--scratch", default=str(ROOT / "reports" / "stability"))
+    args = ap.parse_args()
+    results = Path(args.out)
+    todo = list(CASES) if "all" in args.run else args.run
+    for case in todo:
+        if case not in CASES:
+            ap.error(f"unknown case {case!r}; known: {', '.join(CASES)}")
+        run_sweep(case, results, Path(args.scratch),
+                  args.integrators.split(",") if args.integrators else None)
+    text, doc = summarise(results)
+    (results / "stability.md").write_text(text + "\n")
+    (results / "stability.json").write_text(json.dumps(doc, indent=1) + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
