@@ -296,3 +296,42 @@ def test_sweep_refuses_a_meaningless_option_before_running(option, tmp_path, cap
     assert main(["sweep", str(case), "--out", str(tmp_path / "s"), *option]) == 2
     assert f"error: {option[0]}: expected" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()  # nothing ran
+
+
+@pytest.mark.slow
+def test_the_frontier_of_a_contact_structure_is_bracketed_by_bisection(tmp_path):
+    # MuJoCo (no compilation) on the 100:1 mass ratio (2 s): from dt = 4e-3 the search doubles
+    # until the heavy box sinks or slides more than 0.1 x its size (measured: between 0.0147 and
+    # 0.0152 s), then bisects. The reported bracket must hold when the two steps are run again
+    # through the ordinary runner, and be within the stated resolution.
+    from crosscheck.commands.sweep import _steps
+    from crosscheck.study.sweep import UNSTABLE, must_stand, stability
+
+    case = CASES / "contact" / "mass_ratio_100.toml"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(SRC), str(HERE)]))
+    res = subprocess.run(
+        [sys.executable, "-m", "crosscheck.cli", "sweep", str(case), "--engines", "mujoco",
+         "--integrators", "mujoco.euler", "--dts", "4e-3", "--no-cost", "--workers", "1",
+         "--frontier-width", "0.05", "--out", "sw", "--progress", "none"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr
+    data = json.loads((tmp_path / "sw" / "sweep.json").read_text())
+    assert data["frontier"]["stands"] is True and data["frontier"]["cost"] is False
+    (series,) = data["series"]
+    lo, hi = series["largest_stable_dt"], series["smallest_unstable_dt"]
+    assert lo is not None and hi is not None and lo < hi
+    scene = load_case(case)
+    duration = scene.run.duration
+    # Within the resolution, or whole step counts adjacent (nothing lies between).
+    assert (hi - lo) / lo <= 0.05 * (1 + 1e-6) or _steps(duration, lo) - _steps(duration, hi) == 1
+    # Bisection, not "the largest step tried": stable runs on both sides of doubling, and the
+    # failing step is above the largest doubling step that held.
+    assert series["frontier"].startswith("between ")
+    assert any(r["dt"] > 4e-3 and r["status"] not in UNSTABLE for r in series["runs"])
+    # Run both steps again: stable at the largest stable step, failing at the smallest failing.
+    matrix = build_matrix([scene], engines=["mujoco"], integrators=["mujoco.euler"],
+                          dts=[lo, hi], out=tmp_path / "again", cost=False)
+    outcome = run_and_report(matrix, LocalBackend(1), tmp_path / "again")
+    status = {c["dt"]: stability(c, must_stand(scene)) for c in outcome.cells}
+    assert status[lo] not in UNSTABLE
+    assert status[hi] in UNSTABLE
