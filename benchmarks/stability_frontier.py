@@ -70,6 +70,56 @@ def run_sweep(case: str, results: Path, scratch: Path, integrators: list[str] | 
         shutil.copy(out / name, dest / name)
     # The command line that made them, next to them.
     (dest / "command.txt").write_text("crosscheck " + " ".join(cmd[3:]) + "\n")
+    explain_case(case, results)
+
+
+def explain_case(case: str, results: Path) -> None:
+    """failures.json next to a case's sweep.json: :func:`explain` at every series' smallest
+    failing step where the structure collapsed."""
+    dest = results / "stability" / case
+    data = json.loads((dest / "sweep.json").read_text())
+    how = {}
+    for s in data["series"]:
+        hi = s.get("smallest_unstable_dt")
+        fail = next((r for r in s.get("runs", []) if hi and abs(r["dt"] - hi) <= 1e-9 * hi), None)
+        if fail and fail["status"] == "collapsed":
+            how[f"{s['engine']}-{s['integrator']}"] = explain(case, s["engine"], s["integrator"],
+                                                              hi)
+    (dest / "failures.json").write_text(json.dumps(how, indent=1) + "\n")
+
+
+def explain(case: str, engine: str, integrator: str, dt: float) -> dict:
+    """Run one failing step again (the accuracy pass alone, in this process) and say how the
+    structure failed: the body that moved farthest from its starting position (in body sizes
+    r), and that move's parts along gravity (negative: down, a sink) and across it (a slide or
+    a topple), in m, at the sample where that move is largest."""
+    import numpy as np
+
+    from crosscheck.compare import scales
+    from crosscheck.engines import get_engine
+    from crosscheck.scene.loader import load_case
+
+    scene = load_case(ROOT / "cases" / "contact" / f"{case}.toml")
+    traj = get_engine(engine).run(scene, integrator, dt)
+    g = np.asarray(scene.effects.gravity, float)
+    down = g / np.linalg.norm(g)
+    disp = traj.com - traj.com[0]  # (T, N, d)
+    rel = np.linalg.norm(disp, axis=-1) / scales.body_radii(scene)
+    k, i = np.unravel_index(int(np.argmax(rel)), rel.shape)
+    along = float(-disp[k, i] @ down)  # up positive
+    across = float(np.linalg.norm(disp[k, i] - (disp[k, i] @ down) * down))
+    return {"body": scene.bodies[i].name, "t": float(traj.t[k]), "move_r": float(rel[k, i]),
+            "vertical_m": along, "horizontal_m": across, "t_end": float(traj.t[-1])}
+
+
+def _how(ex: dict | None) -> str:
+    if not ex:
+        return ""
+    kind = ("sank" if ex["vertical_m"] < 0 and abs(ex["vertical_m"]) > ex["horizontal_m"]
+            else "rose" if ex["vertical_m"] > ex["horizontal_m"] else "slid/toppled")
+    return (f"; {kind}: {ex['body']} {ex['move_r']:.2f} r at t = {ex['t']:.3g} s "
+            f"({1e3 * ex['vertical_m']:+.1f} mm vertical, {1e3 * ex['horizontal_m']:.1f} mm "
+            "horizontal)")
 
 
 def _failure(run: dict) -> str:
@@ -103,6 +153,8 @@ def summarise(results: Path) -> tuple[str, dict]:
             lines += [f"## {case}", "", "not run (no sweep.json committed)", ""]
             continue
         data = json.loads(path.read_text())
+        how_path = path.parent / "failures.json"
+        how = json.loads(how_path.read_text()) if how_path.is_file() else {}
         fr = data["frontier"]
         lines += [f"## {case} ({data['case']})", "",
                   f"Cap {fr['cap']:.4g} s, floor {fr.get('floor', float('nan')):.4g} s, "
@@ -122,10 +174,10 @@ def summarise(results: Path) -> tuple[str, dict]:
             width = f"{(hi - lo) / lo:.1%}" if lo and hi else "-"
             lines.append(f"| {label} | {lo:.5g} | " if lo else f"| {label} | none | ")
             lines[-1] += (f"{hi:.5g} | " if hi else "none up to the cap | ")
-            lines[-1] += (f"{_failure(fail)} | " if fail else "- | ") + f"{width} | " \
-                f"{s['frontier']} |"
+            lines[-1] += (f"{_failure(fail)}{_how(how.get(label))} | " if fail else "- | ") \
+                + f"{width} | {s['frontier']} |"
             rows.append({"series": label, "largest_stable_dt": lo, "smallest_unstable_dt": hi,
-                         "failure": fail, "frontier": s["frontier"]})
+                         "failure": fail, "how": how.get(label), "frontier": s["frontier"]})
         doc["cases"][case] = {"case": data["case"], "frontier": fr, "series": rows}
         lines.append("")
     return "\n".join(lines), doc
@@ -138,8 +190,13 @@ def main() -> int:
                     help="only these series of the case (a partial rerun)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     ap.add_argument("--scratch", default=str(ROOT / "reports" / "stability"))
+    ap.add_argument("--explain", nargs="*", default=[], metavar="CASE",
+                    help="only rerun the failing steps of these cases' committed sweeps "
+                         "(failures.json)")
     args = ap.parse_args()
     results = Path(args.out)
+    for case in args.explain:
+        explain_case(case, results)
     todo = list(CASES) if "all" in args.run else args.run
     for case in todo:
         if case not in CASES:
