@@ -198,7 +198,44 @@ def summarise(results: Path) -> tuple[str, dict]:
                          "failure": fail, "how": how.get(label), "frontier": s["frontier"]})
         doc["cases"][case] = {"case": data["case"], "frontier": fr, "series": rows}
         lines.append("")
+    lines += _per_engine(doc)
     return "\n".join(lines), doc
+
+
+SHORT = {"blowup": "blow-up", "collapsed": "falls", "gained_energy": "gains energy",
+         "error": "error", "timeout": "timeout"}
+
+
+def _per_engine(doc: dict) -> list[str]:
+    """Per engine, a table of its series against the cases: the bracket (largest stable -
+    smallest failing step, ms) and how it failed; docs/engines.md and docs/inhouse.md quote
+    these."""
+    out = ["## Per engine (dt in ms: largest stable - smallest failing)", ""]
+    cases = list(doc["cases"])
+    engines: dict[str, dict[str, dict[str, str]]] = {}
+    for case in cases:
+        for row in doc["cases"][case]["series"]:
+            engine, integrator = row["series"].split("-", 1)
+            lo, hi, fail, how = (row["largest_stable_dt"], row["smallest_unstable_dt"],
+                                 row["failure"], row.get("how"))
+            if hi is None:
+                text = f">= {1e3 * lo:.4g} (cap)" if lo else "none"
+            else:
+                what = SHORT.get(fail["status"], fail["status"]) if fail else "?"
+                if how and fail and fail["status"] == "collapsed":
+                    what = ("sinks" if how["vertical_m"] < 0
+                            and -how["vertical_m"] > how["horizontal_m"] else "slides/topples")
+                text = (f"{1e3 * lo:.4g} - {1e3 * hi:.4g} ({what})" if lo else
+                        f"< {1e3 * hi:.4g} ({what})")
+            engines.setdefault(engine, {}).setdefault(integrator, {})[case] = text
+    for engine, rows in engines.items():
+        out += [f"### {engine}", "", "| integrator | " + " | ".join(cases) + " |",
+                "|---|" + "---|" * len(cases)]
+        for integrator, by_case in rows.items():
+            out.append(f"| {integrator} | " + " | ".join(by_case.get(c, "not run")
+                                                         for c in cases) + " |")
+        out.append("")
+    return out
 
 
 def main() -> int:
