@@ -132,8 +132,8 @@ def explain(case: str, engine: str, integrator: str, dt: float) -> dict:
 def _how(ex: dict | None) -> str:
     if not ex:
         return ""
-    kind = ("sank" if ex["vertical_m"] < 0 and abs(ex["vertical_m"]) > ex["horizontal_m"]
-            else "rose" if ex["vertical_m"] > ex["horizontal_m"] else "slid/toppled")
+    kind = ("mostly down" if ex["vertical_m"] < 0 and abs(ex["vertical_m"]) > ex["horizontal_m"]
+            else "mostly up" if ex["vertical_m"] > ex["horizontal_m"] else "mostly sideways")
     return (f"; {kind}: {ex['body']} {ex['move_r']:.2f} r from its {ex.get('from', 'start')} "
             f"pose at t = {ex['t']:.3g} s "
             f"({1e3 * ex['vertical_m']:+.1f} mm vertical, {1e3 * ex['horizontal_m']:.1f} mm "
@@ -223,8 +223,9 @@ def _per_engine(doc: dict) -> list[str]:
             else:
                 what = SHORT.get(fail["status"], fail["status"]) if fail else "?"
                 if how and fail and fail["status"] == "collapsed":
-                    what = ("sinks" if how["vertical_m"] < 0
-                            and -how["vertical_m"] > how["horizontal_m"] else "slides/topples")
+                    what = ("falls, mostly down" if how["vertical_m"] < 0
+                            and -how["vertical_m"] > how["horizontal_m"]
+                            else "falls, mostly sideways")
                 text = (f"{1e3 * lo:.4g} - {1e3 * hi:.4g} ({what})" if lo else
                         f"< {1e3 * hi:.4g} ({what})")
             engines.setdefault(engine, {}).setdefault(integrator, {})[case] = text
@@ -232,9 +233,14 @@ def _per_engine(doc: dict) -> list[str]:
         out += [f"### {engine}", "", "| integrator | " + " | ".join(cases) + " |",
                 "|---|" + "---|" * len(cases)]
         for integrator, by_case in rows.items():
-            out.append(f"| {integrator} | " + " | ".join(by_case.get(c, "not run")
+            out.append(f"| {integrator} | " + " | ".join(by_case.get(c, "-")
                                                          for c in cases) + " |")
         out.append("")
+    out += ["-: not among the case's series (Pymunk is 2D only, PyBullet's maximal mode 3D "
+            "only; the pyramid runs MuJoCo's euler only). Falls: the largest move of a body "
+            "from its starting or settled pose at the smallest failing step, mostly down (a "
+            "sink into the body below or the ground) or mostly sideways (a slide or topple).",
+            ""]
     return out
 
 
