@@ -150,6 +150,9 @@ def _failure(run: dict) -> str:
         parts.append(f"(gain {run['energy_gain']:.3g})")
     if run["status"] in ("error", "timeout") and run.get("reason"):
         parts.append(f"({run['reason'][:60]})")
+    elif run["status"] == "blowup" and run.get("reason"):
+        # "blew up at t = T s: why": the time is already there, keep the why
+        parts.append(f"({run['reason'].split(': ', 1)[-1][:70]})")
     return " ".join(parts)
 
 
