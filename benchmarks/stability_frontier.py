@@ -29,6 +29,10 @@ Why these options (the sweep's own, docs/reports.md "crosscheck sweep"):
   searches do not fit the CPU at hand. The 210-box pyramid: MuJoCo ``euler`` only (the default;
   its other integrators differ in the smooth dynamics), PyBullet multibody (the only mode in
   2D), Pymunk, and the four in-house pairings.
+* the stack's ``rk4+impulse_lcp`` is a sweep of its own (``stack_10+impulse_lcp``: from 32 ms,
+  at most 3 rounds; see ``EXTRA``), and the stack and the pyramid have a 300 s cell limit
+  (``TIMEOUT``; the mass ratios the default 600 s): a cell that does not finish counts as a
+  failure (timeout).
 """
 
 from __future__ import annotations

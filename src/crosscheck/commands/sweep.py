@@ -117,7 +117,7 @@ def next_probe(duration: float, stable: float | None, unstable: float | None, ca
     of steps nearest ``duration / (2 dt)``, never above the cap. Bisection between the largest
     stable and the smallest unstable step on the number of steps: ``N = (N_stable +
     N_unstable) // 2``, until ``(unstable - stable) / stable <= width`` or the counts are
-    adjacent (no whole step lies between). Nothing below an unstable smallest step.
+    adjacent (no whole step lies between).
     """
     if stable is None:
         if unstable is None or floor is None or unstable <= floor * (1 + 1e-9):
