@@ -579,6 +579,24 @@ def test_a_standing_stack_and_a_collapsing_one():
     assert ms["time_to_rest"].value is None
 
 
+def test_a_fall_inside_the_settle_window_shows_in_collapse_time_start():
+    # The top box slides off within the first 0.3 s (the settle window is 0.5 s) and lies
+    # still: measured from the settled pose nothing moves, from the start it fell.
+    scene = stack_case()
+    t = np.linspace(0, 5, 501)
+    com = np.array([[0, 0, k + 0.5] for k in range(3)], float)
+    pos = np.broadcast_to(com, (len(t), 3, 3)).copy()
+    pos[:, 2, 0] += np.clip(t, 0, 0.3) * 5.0
+    pos[:, 2, 2] -= np.clip(t - 0.2, 0, 0.1) * 20.0  # down onto the ground: 2.5 -> 0.5 m
+    ms = metrics(scene, traj3(t, pos))
+    assert "collapse_time" not in ms
+    r = scales.body_radius(scene.bodies[2])
+    k = np.nonzero(np.linalg.norm(pos[:, 2] - pos[0, 2], axis=-1) > cm.COLLAPSE_FRACTION * r)[0][0]
+    assert ms["collapse_time_start"].value == pytest.approx(t[k])
+    # A stack that stands has neither.
+    assert "collapse_time_start" not in metrics(scene, still(scene, t, com))
+
+
 def test_time_to_rest_is_when_every_body_stays_slow():
     scene = load(case(body("ball", "{ sphere = { radius = 0.1 } }")))
     t = np.linspace(0, 1, 101)

@@ -586,7 +586,8 @@ REFERENCE_METRICS = {"position_error_max", "position_error_rms", "position_error
 # the contact-metrics module's names (compare/contact_metrics.py, written in parallel)
 CONTACT_METRICS = {"penetration_max", "penetration_resting_mean", "energy_gain",
                    "restitution_error_max", "stop_distance", "stop_time", "slip_velocity_max",
-                   "rolling_acceleration", "rest_drift_max", "time_to_rest", "collapse_time"}
+                   "rolling_acceleration", "rest_drift_max", "time_to_rest", "collapse_time",
+                   "collapse_time_start"}
 
 
 def test_the_contact_suite_is_there():

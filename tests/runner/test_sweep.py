@@ -230,6 +230,63 @@ def test_a_structure_that_collapses_or_gains_energy_is_unstable_for_the_frontier
     assert stability(falling) == "pass"
 
 
+def test_a_structure_without_limits_still_fails_by_falling_or_gaining_energy():
+    # mass_ratio_1000 sets no tolerance at all (its drift is a result to report), so no
+    # rest_drift_max limit says it must stand: before must_stand, a 1000 kg box that squeezed
+    # the light one out and an energy-pumping solver were both "stable" there.
+    from crosscheck.study.sweep import STRUCTURE_ENERGY_GAIN, must_stand, stability
+
+    heavy = load_case(CASES / "contact" / "mass_ratio_1000.toml")
+    assert not heavy.tolerances and must_stand(heavy)
+    assert must_stand(load_case(CASES / "contact" / "pyramid_2d.toml"))
+    # A ball dropped from rest that bounces to rest is no structure.
+    assert not must_stand(load_case(CASES / "contact" / "bounce_resting.toml"))
+    assert not must_stand(load_case(CASES / "rigid3d" / "spring_anchor.toml"))
+
+    def cell(**metrics):
+        return {"engine": "pybullet", "integrator": "maximal", "dt": 0.01, "status": "pass",
+                "metrics": {n: {"value": v} for n, v in metrics.items()}}
+
+    fell = cell(energy_gain=0.0, collapse_time=0.42)
+    assert stability(fell, stands=True) == "collapsed"
+    assert stability(fell) == "pass"  # without the scene: no limit, no structure
+    pumped = cell(energy_gain=3 * STRUCTURE_ENERGY_GAIN)
+    assert stability(pumped, stands=True) == "gained_energy"
+    assert stability(cell(energy_gain=0.5 * STRUCTURE_ENERGY_GAIN), stands=True) == "pass"
+
+
+def test_a_fall_inside_the_settle_window_counts_as_a_collapse():
+    # At a large step the settle window (the first 10 % of the run) can hold the whole fall:
+    # the heavy box is on the ground by then and lies still, so collapse_time (measured from
+    # the settled pose) stays unset; collapse_time_start (from the starting pose) catches it.
+    from crosscheck.study.sweep import analyse, stability
+
+    def cell(dt, start=None):
+        metrics = {"rest_drift_max": {"value": 1e-5, "limit": 1.5e-3},
+                   "energy_gain": {"value": 0.0}}
+        if start is not None:
+            metrics["collapse_time_start"] = {"value": start}
+        return {"engine": "inhouse", "integrator": "rk4+penalty", "dt": dt, "status": "pass",
+                "metrics": metrics}
+
+    cells = [cell(0.04, start=0.04), cell(0.02), cell(0.01)]
+    assert stability(cells[0]) == "collapsed"
+    _, (series,) = analyse(cells, "rest_drift_max")
+    assert (series.largest_stable_dt, series.smallest_unstable_dt) == (0.02, 0.04)
+    assert series.runs[0]["status"] == "collapsed" and series.runs[0]["time"] == 0.04
+
+
+def test_the_search_halves_below_a_step_that_fails():
+    # Unstable at every sweep step: halve (whole step counts) down to the floor, so the series
+    # gets a bracket instead of "below the smallest step run".
+    from crosscheck.commands.sweep import next_probe
+
+    assert next_probe(1.0, None, 1e-3, 0.1, 0.05, floor=1e-4) == pytest.approx(5e-4)
+    assert next_probe(1.0, None, 1e-3, 0.1, 0.05, floor=None) is None
+    assert next_probe(1.0, None, 1e-4, 0.1, 0.05, floor=1e-4) is None  # at the floor
+    assert next_probe(1.0, None, 1.5e-4, 0.1, 0.05, floor=1e-4) is None  # 7.5e-5 is below it
+
+
 @pytest.mark.parametrize("option", [["--target", "-1"], ["--max-dt", "-0.1"],
                                     ["--frontier-width", "0"], ["--frontier-rounds", "-2"]])
 def test_sweep_refuses_a_meaningless_option_before_running(option, tmp_path, capsys):
@@ -239,3 +296,42 @@ def test_sweep_refuses_a_meaningless_option_before_running(option, tmp_path, cap
     assert main(["sweep", str(case), "--out", str(tmp_path / "s"), *option]) == 2
     assert f"error: {option[0]}: expected" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()  # nothing ran
+
+
+@pytest.mark.slow
+def test_the_frontier_of_a_contact_structure_is_bracketed_by_bisection(tmp_path):
+    # MuJoCo (no compilation) on the 100:1 mass ratio (2 s): from dt = 4e-3 the search doubles
+    # until the heavy box sinks or slides more than 0.1 x its size (measured: between 0.0147 and
+    # 0.0152 s), then bisects. The reported bracket must hold when the two steps are run again
+    # through the ordinary runner, and be within the stated resolution.
+    from crosscheck.commands.sweep import _steps
+    from crosscheck.study.sweep import UNSTABLE, must_stand, stability
+
+    case = CASES / "contact" / "mass_ratio_100.toml"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(SRC), str(HERE)]))
+    res = subprocess.run(
+        [sys.executable, "-m", "crosscheck.cli", "sweep", str(case), "--engines", "mujoco",
+         "--integrators", "mujoco.euler", "--dts", "4e-3", "--no-cost", "--workers", "1",
+         "--frontier-width", "0.05", "--out", "sw", "--progress", "none"],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr
+    data = json.loads((tmp_path / "sw" / "sweep.json").read_text())
+    assert data["frontier"]["stands"] is True and data["frontier"]["cost"] is False
+    (series,) = data["series"]
+    lo, hi = series["largest_stable_dt"], series["smallest_unstable_dt"]
+    assert lo is not None and hi is not None and lo < hi
+    scene = load_case(case)
+    duration = scene.run.duration
+    # Within the resolution, or whole step counts adjacent (nothing lies between).
+    assert (hi - lo) / lo <= 0.05 * (1 + 1e-6) or _steps(duration, lo) - _steps(duration, hi) == 1
+    # Bisection, not "the largest step tried": stable runs on both sides of doubling, and the
+    # failing step is above the largest doubling step that held.
+    assert series["frontier"].startswith("between ")
+    assert any(r["dt"] > 4e-3 and r["status"] not in UNSTABLE for r in series["runs"])
+    # Run both steps again: stable at the largest stable step, failing at the smallest failing.
+    matrix = build_matrix([scene], engines=["mujoco"], integrators=["mujoco.euler"],
+                          dts=[lo, hi], out=tmp_path / "again", cost=False)
+    outcome = run_and_report(matrix, LocalBackend(1), tmp_path / "again")
+    status = {c["dt"]: stability(c, must_stand(scene)) for c in outcome.cells}
+    assert status[lo] not in UNSTABLE
+    assert status[hi] in UNSTABLE

@@ -21,6 +21,7 @@ ORDER = 6  # its place in crosscheck --help
 FRONTIER_WIDTH = 0.05  # stop bisecting when (unstable - stable) / stable is at most this
 FRONTIER_ROUNDS = 16  # runner rounds of doubling and bisection, all series together
 CAP_FRACTION = 0.1  # default cap of the doubling: the duration / 10
+FLOOR_DIVISOR = 8.0  # default floor of the halving: the smallest sweep step / 8
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -39,6 +40,12 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="name the cheapest engine, integrator and dt whose error stays <= X")
     p.add_argument("--max-dt", type=float, default=None, metavar="S",
                    help="cap of the stability search (default: the duration / 10)")
+    p.add_argument("--min-dt", type=float, default=None, metavar="S",
+                   help="floor of the stability search below a step that fails (default: the "
+                        f"smallest sweep step / {FLOOR_DIVISOR:g})")
+    p.add_argument("--no-cost", action="store_true",
+                   help="skip the cost pass (timed stepping) of every cell: the frontier needs "
+                        "only the verdicts; no cost axis, no --target")
     p.add_argument("--frontier-width", type=float, default=FRONTIER_WIDTH, metavar="F",
                    help="bisect the stability bracket until (unstable - stable) / stable <= F "
                         f"(default {FRONTIER_WIDTH:g})")
@@ -99,17 +106,24 @@ def _steps(duration: float, dt: float) -> int:
 
 
 def next_probe(duration: float, stable: float | None, unstable: float | None, cap: float,
-               width: float) -> float | None:
+               width: float, floor: float | None = None) -> float | None:
     """The next step to try for one series, or None when its frontier is settled.
+
+    Halving while every step run is unstable: ``dt = duration / (2 N_unstable)``, never below
+    ``floor`` (None: no search below the smallest step run), so a series that fails at every
+    sweep step still gets a bracket instead of "below the smallest step".
 
     Doubling while every step run is stable: ``dt = duration / N`` with ``N`` the whole number
     of steps nearest ``duration / (2 dt)``, never above the cap. Bisection between the largest
     stable and the smallest unstable step on the number of steps: ``N = (N_stable +
     N_unstable) // 2``, until ``(unstable - stable) / stable <= width`` or the counts are
-    adjacent (no whole step lies between). Nothing below an unstable smallest step.
+    adjacent (no whole step lies between).
     """
     if stable is None:
-        return None
+        if unstable is None or floor is None or unstable <= floor * (1 + 1e-9):
+            return None
+        dt = duration / (2 * _steps(duration, unstable))
+        return dt if dt >= floor * (1 - 1e-9) else None
     if unstable is None:
         if stable >= cap * (1 - 1e-9):
             return None
@@ -124,7 +138,7 @@ def next_probe(duration: float, stable: float | None, unstable: float | None, ca
     return duration / ((n_s + n_u) // 2)
 
 
-def _probe_matrix(scene, probes, out, refs, timeout, reference_dir):
+def _probe_matrix(scene, probes, out, refs, timeout, reference_dir, cost=True):
     """One runner matrix holding just the probe cells (engine, integrator, dt)."""
     from crosscheck.runner.plan import build_matrix
 
@@ -132,7 +146,7 @@ def _probe_matrix(scene, probes, out, refs, timeout, reference_dir):
     for engine, integrator, dt in probes:
         m = build_matrix([scene], engines=[engine], integrators=[f"{engine}.{integrator}"],
                          dts=[dt], out=out, timeout=timeout, engine_refs=refs,
-                         reference_dir=reference_dir)
+                         reference_dir=reference_dir, cost=cost)
         if merged is None:
             merged = m
             continue
@@ -161,6 +175,8 @@ def _run(args) -> tuple[int, dict]:
              "a positive error"),
             ("--max-dt", args.max_dt, lambda v: v is None or (v > 0 and math.isfinite(v)),
              "a positive step in s"),
+            ("--min-dt", args.min_dt, lambda v: v is None or (v > 0 and math.isfinite(v)),
+             "a positive step in s"),
             ("--frontier-width", args.frontier_width, lambda v: 0 < v < 1 and math.isfinite(v),
              "a relative width between 0 and 1"),
             ("--frontier-rounds", args.frontier_rounds, lambda v: v >= 0, "rounds >= 0")):
@@ -168,14 +184,19 @@ def _run(args) -> tuple[int, dict]:
             raise UsageError(f"{flag}: expected {expected}, got {value}")
     if not Path(args.case).is_file():
         raise UsageError(f"{args.case}: no such case file")
+    if args.no_cost and args.target is not None:
+        raise UsageError("--target needs the cost pass: drop --no-cost")
     refs = _engine_refs(args.engine_ref)
     scene = load_case(args.case, unchecked_engines=refs)
     dts = parse_dts(args.dts) or _default_dts(scene)
     engines = parse_list(args.engines)
     integrators = parse_list(args.integrators) or _all_integrators(scene, engines, refs)
     out = Path(args.out or f"reports/sweep-{safe_name(scene.name)}")
+    cost = not args.no_cost
     matrix = build_matrix([scene], engines=engines, integrators=integrators, dts=dts, out=out,
-                          timeout=args.timeout, engine_refs=refs)
+                          timeout=args.timeout, engine_refs=refs, cost=cost)
+    # A contact structure that must stand fails by falling or gaining energy, too.
+    stands = sweep.must_stand(scene)
     backend = LocalBackend(args.workers)
     print(f"crosscheck sweep: {scene.name}, {len(matrix.cells)} cell(s) at dt = "
           + ", ".join(f"{d:g}" for d in dts) + f" -> {out}", flush=True)
@@ -194,15 +215,16 @@ def _run(args) -> tuple[int, dict]:
     if scene.fluid is None:
         cap = duration / math.ceil(duration / cap - 1e-9)  # a step that divides the duration
     search = scene.fluid is None and args.frontier_rounds > 0
+    floor = args.min_dt if args.min_dt is not None else min(dts) / FLOOR_DIVISOR
     rounds = 0
     while search and not interrupted and rounds < args.frontier_rounds:
-        _, series = sweep.analyse(cells, args.metric)
+        _, series = sweep.analyse(cells, args.metric, stands=stands)
         probes = []
         for s in series:
             if s.not_applicable:
                 continue
             dt = next_probe(duration, s.largest_stable_dt, s.smallest_unstable_dt, cap,
-                            args.frontier_width)
+                            args.frontier_width, floor)
             if dt is not None and not any(sweep._same(dt, p) for p in
                                           [*s.dts, *(q["dt"] for q in s.probes)]):
                 probes.append((s.engine, s.integrator, dt))
@@ -212,24 +234,32 @@ def _run(args) -> tuple[int, dict]:
         where = out / "frontier" / f"round-{rounds}"
         print(f"frontier round {rounds}: " + ", ".join(
             f"{e}-{i}@{d:.4g}" for e, i, d in probes), flush=True)
-        m = _probe_matrix(scene, probes, where, refs, args.timeout, out / "references")
+        m = _probe_matrix(scene, probes, where, refs, args.timeout, out / "references", cost)
         res = run_and_report(m, backend, where, command=["crosscheck", "sweep", args.case],
                              settings={"sweep": True, "frontier_round": rounds})
         cells += res.cells
         interrupted = bool(res.doc.get("interrupted"))
 
     metric, series = sweep.analyse(cells, args.metric, dts, cap=cap, width=args.frontier_width,
-                                   searched=search)
+                                   searched=search, stands=stands, floor=floor)
     text = f"# Sweep of {scene.name}\n\n" + sweep.table(metric, series, args.target) + "\n"
     if search:
         text += (f"\nStability frontier: doubling from the largest stable step up to the cap "
-                 f"{cap:.4g} s, then bisection on the number of steps until the bracket is "
+                 f"{cap:.4g} s (halving below a failing smallest step down to {floor:.4g} s), "
+                 "then bisection on the number of steps until the bracket is "
                  f"within {args.frontier_width:.0%} or whole step counts are adjacent; "
                  f"{rounds} round(s) of at most {args.frontier_rounds}; every probe's reports "
                  f"in {out / 'frontier'}.\n")
+        if stands:
+            text += ("\nA structure that must stand (study.sweep.must_stand): a run is stable "
+                     "only if, besides not blowing up, no body left a ball of "
+                     "0.1 x its size around its starting or its settled position "
+                     "(`collapse_time`, `collapse_time_start`) and its energy gain stayed "
+                     f"within the case's limit (else {sweep.STRUCTURE_ENERGY_GAIN:g}).\n")
     write_text(out / "sweep.md", text)
     summary = {"case": scene.name, "metric": metric, "dts": dts,
-               "frontier": {"searched": search, "cap": cap, "width": args.frontier_width,
+               "frontier": {"searched": search, "cap": cap, "floor": floor, "stands": stands,
+                            "width": args.frontier_width, "cost": cost,
                             "rounds": rounds, "max_rounds": args.frontier_rounds},
                "series": [s.to_dict() for s in series],
                "pareto": [dict(zip(("label", "dt", "cost", "error"), p, strict=True))

@@ -91,6 +91,8 @@ Resting and structures (every contact scene)
     every body at every later sample; not measurable when the run ends moving.
     ``collapse_time`` (s), in cases that start at rest: the first ``t >= t_settle`` at which some
     ``|x_i(t) - x_i(t_settle)| > COLLAPSE_FRACTION r_i``; absent when no body ever does.
+    ``collapse_time_start`` (s), likewise from the starting pose: the first ``t >= t_0`` at which
+    some ``|x_i(t) - x_i(t_0)| > COLLAPSE_FRACTION r_i`` (a fall inside the settle window).
 
 The thresholds are fixed module constants (stated in every note); a case table to set them would
 need loader work and is not offered yet. Helpers the analytic references call:
@@ -128,6 +130,7 @@ UNITS = {
     "penetration_max": "m", "penetration_resting_mean": "m", "stop_distance": "m",
     "stop_time": "s", "slip_velocity_max": "m/s", "rolling_acceleration": "m/s^2",
     "rest_drift_max": "m", "time_to_rest": "s", "collapse_time": "s",
+    "collapse_time_start": "s",
 }
 
 ROUND = ("sphere", "circle")
@@ -836,6 +839,16 @@ def _rest_metrics(scene: Scene, traj: Trajectory, out: MetricSet):
                 out.add("collapse_time", float(t[k + over[0]]),
                         note=f"a centre of mass left a ball of {COLLAPSE_FRACTION:g} x its body "
                              f"size around its position at t = {t[k]:.6g} s")
+    if at_rest_start and len(t):
+        # From the starting pose too: a structure that falls apart inside the settle window (or
+        # in the first step of a large one) and lies still afterwards leaves collapse_time
+        # unset, yet it did not stand (the stability frontier of crosscheck sweep needs this).
+        start = np.linalg.norm(traj.com - traj.com[0], axis=-1)  # (T, N)
+        over = np.nonzero(np.any(start > COLLAPSE_FRACTION * radii, axis=1))[0]
+        if len(over):
+            out.add("collapse_time_start", float(t[over[0]]),
+                    note=f"a centre of mass left a ball of {COLLAPSE_FRACTION:g} x its body size "
+                         f"around its starting position (t = {t[0]:.6g} s)")
     speed = np.linalg.norm(traj.vel, axis=-1) + _omega_norm(scene, traj) * radii
     moving = np.nonzero(np.any(speed >= REST_SPEED, axis=1))[0]
     if len(moving) and moving[-1] == len(t) - 1:

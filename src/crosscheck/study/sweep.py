@@ -45,24 +45,69 @@ CONSERVATION_METRICS = ("energy_drift", "angular_momentum_drift", "linear_moment
 UNSTABLE = frozenset({"blowup", "error", "timeout", "collapsed", "gained_energy"})
 
 
-def stability(cell: dict[str, Any]) -> str:
+# The case-suite tag of a contact structure built to stand in equilibrium (stack_10, pyramid_2d,
+# mass_ratio_100, mass_ratio_1000): mass_ratio_1000 sets no tolerances at all (its drift is a
+# result to report), so the tag, not a rest_drift_max limit, is what says it must stand.
+STRUCTURE_TAG = "stack"
+# energy_gain (docs/metrics.md: max gain over E(0) / S_E, S_E at least the work to lift every
+# body by its own size) above which a standing structure without an energy_gain limit of its
+# own gained energy: 1 % of that work is far above any resting integrator's error (a structure
+# that stands loses energy or keeps it) and far below a structure thrown apart (order 1).
+STRUCTURE_ENERGY_GAIN = 1e-2
+
+
+def must_stand(scene) -> bool:
+    """True for a contact structure that must stand: contact on, every body starting at rest,
+    and the case either tagged :data:`STRUCTURE_TAG` or limiting ``rest_drift_max``."""
+    import numpy as np
+
+    if not scene.effects.contact:
+        return False
+    if any(np.any(np.asarray(b.velocity)) or np.any(np.asarray(b.angular_velocity))
+           for b in scene.bodies):
+        return False
+    return STRUCTURE_TAG in scene.tags or "rest_drift_max" in scene.tolerances
+
+
+def stability(cell: dict[str, Any], stands: bool | None = None) -> str:
     """The cell's status as far as stability goes: its own status, or, for a run that did not
-    blow up, ``collapsed`` when a structure that should stand fell (the case limits its
-    ``rest_drift_max`` and its ``collapse_time`` has a value) and ``gained_energy`` when
-    ``energy_gain`` broke the case's limit for it. A contact structure can fail without any
-    value running away."""
+    blow up, ``collapsed`` when a structure that should stand fell and ``gained_energy`` when
+    it gained energy. A contact structure can fail without any value running away.
+
+    ``stands``: the case is a structure that must stand (:func:`must_stand`); None (no scene at
+    hand) takes a ``rest_drift_max`` limit on the cell as saying so. A structure fell when its
+    ``collapse_time`` (measured from the settled pose at 10 % of the run) or its
+    ``collapse_time_start`` (from the starting pose: a structure that falls apart inside the
+    settle window, or in the first step of a large one, and lies still afterwards shows only
+    there) has a value. Energy: ``energy_gain`` broke the case's limit for it, or, for a
+    structure without such a limit, exceeds :data:`STRUCTURE_ENERGY_GAIN`."""
     status = cell.get("status", "")
     if status in UNSTABLE or status == "not_applicable":
         return status
     metrics = cell.get("metrics") or {}
-    # Only where the case says the structure must stand (a limit on its rest drift): a ball
-    # dropped from rest also "leaves its settled position", and that is not a collapse.
-    stands = (metrics.get("rest_drift_max") or {}).get("limit") is not None
-    if stands and (metrics.get("collapse_time") or {}).get("value") is not None:
+    # Only where the case says the structure must stand: a ball dropped from rest also
+    # "leaves its settled position", and that is not a collapse.
+    if stands is None:
+        stands = (metrics.get("rest_drift_max") or {}).get("limit") is not None
+    if stands and fall_time(metrics) is not None:
         return "collapsed"
-    if (metrics.get("energy_gain") or {}).get("passed") is False:
+    gain = metrics.get("energy_gain") or {}
+    if gain.get("passed") is False:
+        return "gained_energy"
+    value = gain.get("value")
+    if (stands and gain.get("limit") is None and isinstance(value, int | float)
+            and value > STRUCTURE_ENERGY_GAIN):
         return "gained_energy"
     return status
+
+
+def fall_time(metrics: dict[str, Any]) -> float | None:
+    """The earlier of ``collapse_time`` and ``collapse_time_start``, None when neither is set."""
+    times = [(metrics.get(n) or {}).get("value") for n in ("collapse_time", "collapse_time_start")]
+    times = [t for t in times if isinstance(t, int | float)]
+    return min(times) if times else None
+
+
 REL = 1e-9  # two steps within this relative difference are the same step
 
 
@@ -86,6 +131,9 @@ class Series:
     smallest_unstable_dt: float | None = None  # above largest_stable_dt (the frontier bracket)
     frontier: str = ""  # the frontier in words
     probes: list[dict[str, Any]] = field(default_factory=list)  # frontier cells: dt, status, ...
+    # Every run (sweep steps and probes), decreasing dt: dt, stability status, and for a failed
+    # run what failed when (:func:`_run_record`).
+    runs: list[dict[str, Any]] = field(default_factory=list)
     not_applicable: str | None = None
 
     @property
@@ -96,7 +144,8 @@ class Series:
         return dict(self.__dict__)
 
 
-def pick_metric(cells: list[dict[str, Any]], wanted: str | None = None) -> str | None:
+def pick_metric(cells: list[dict[str, Any]], wanted: str | None = None,
+                stands: bool | None = None) -> str | None:
     """The metric a sweep plots: ``wanted``, else the first informative candidate.
 
     Candidates, in order: errors against the reference (:data:`DEFAULT_METRICS`), the other
@@ -112,7 +161,7 @@ def pick_metric(cells: list[dict[str, Any]], wanted: str | None = None) -> str |
     def values(name: str) -> list[float]:
         out = []
         for c in cells:
-            if stability(c) in UNSTABLE:
+            if stability(c, stands) in UNSTABLE:
                 continue
             v = (c.get("metrics") or {}).get(name, {}).get("value")
             if isinstance(v, int | float) and math.isfinite(v):
@@ -215,15 +264,16 @@ def _nominal_order(engine: str, integrator: str) -> int | None:
 
 def analyse(cells: list[dict[str, Any]], metric: str | None = None,
             sweep_dts: list[float] | None = None, *, cap: float | None = None,
-            width: float | None = None, searched: bool = False
-            ) -> tuple[str | None, list[Series]]:
+            width: float | None = None, searched: bool = False, stands: bool | None = None,
+            floor: float | None = None) -> tuple[str | None, list[Series]]:
     """Group one case's cells by engine and integrator into convergence series.
 
     ``sweep_dts``: the sweep's steps; cells at other steps are frontier probes (``Series.probes``)
     that count for the stability frontier and :func:`cheapest` but not for the order. ``cap``,
-    ``width`` and ``searched`` describe the frontier search for the words of ``frontier``.
+    ``width`` and ``searched`` describe the frontier search for the words of ``frontier``;
+    ``stands``: the case is a structure that must stand (:func:`stability`).
     """
-    metric = pick_metric(cells, metric)
+    metric = pick_metric(cells, metric, stands)
     groups: dict[tuple[str, str], Series] = {}
     everything: dict[tuple[str, str], list[tuple[float, str]]] = {}
     for c in sorted(cells, key=lambda c: (c["engine"], c["integrator"], -c["dt"])):
@@ -234,12 +284,13 @@ def analyse(cells: list[dict[str, Any]], metric: str | None = None,
             continue
         metrics = c.get("metrics") or {}
         m = metrics.get(metric or "", {})
-        status = stability(c)
+        status = stability(c, stands)
         stable = status not in UNSTABLE
         error = m.get("value") if stable else None
         why = (m.get("not_measured") or "") if stable and error is None else ""
         dt = float(c["dt"])
         everything.setdefault(key, []).append((dt, status))
+        s.runs.append(_run_record(c, dt, status))
         if sweep_dts is not None and not any(_same(dt, d) for d in sweep_dts):
             s.probes.append({"dt": dt, "status": status, "error": error,
                              "not_measured": why, "cost": c.get("cost")})
@@ -252,9 +303,27 @@ def analyse(cells: list[dict[str, Any]], metric: str | None = None,
         s.resolutions.append(_resolution_of(metrics, metric or "") if stable else None)
     for key, s in groups.items():
         s.nominal_order = _nominal_order(*key)
-        _frontier(s, sorted(everything.get(key, []), reverse=True), cap, width, searched)
+        _frontier(s, sorted(everything.get(key, []), reverse=True), cap, width, searched, floor)
         _order(s)
     return metric, list(groups.values())
+
+
+def _run_record(cell: dict[str, Any], dt: float, status: str) -> dict[str, Any]:
+    """dt, stability status, and the evidence: ``time`` (s) of the blow-up (the driver's failure
+    time or ``blowup_time``) or of the fall (:func:`fall_time`), the ``energy_gain``, the
+    ``rest_drift_max`` and the cell's own status and reason."""
+    from crosscheck.report.overview import blowup_time
+
+    metrics = cell.get("metrics") or {}
+    time = None
+    if status in ("blowup", "error", "timeout"):
+        time = blowup_time(cell)
+    elif status == "collapsed":
+        time = fall_time(metrics)
+    return {"dt": dt, "status": status, "cell_status": cell.get("status"), "time": time,
+            "energy_gain": (metrics.get("energy_gain") or {}).get("value"),
+            "rest_drift_max": (metrics.get("rest_drift_max") or {}).get("value"),
+            "reason": ((cell.get("reason") or "").strip().splitlines() or [""])[0][:200]}
 
 
 def _order(s: Series) -> None:
@@ -284,7 +353,7 @@ def _order(s: Series) -> None:
 
 
 def _frontier(s: Series, runs: list[tuple[float, str]], cap: float | None,
-              width: float | None, searched: bool) -> None:
+              width: float | None, searched: bool, floor: float | None = None) -> None:
     """Largest stable step (it and every smaller step run stable), the smallest unstable step
     above it, and the frontier in words."""
     s.largest_stable_dt = s.smallest_unstable_dt = None
@@ -300,6 +369,9 @@ def _frontier(s: Series, runs: list[tuple[float, str]], cap: float | None,
     if s.largest_stable_dt is None:
         s.smallest_unstable_dt = runs[-1][0]
         s.frontier = f"< {runs[-1][0]:.4g} (unstable at every step run)"
+        if searched and floor is not None:
+            s.frontier = (f"< {runs[-1][0]:.4g} (unstable at every step run, halving down to "
+                          f"the floor {floor:.4g} s)")
     elif s.smallest_unstable_dt is not None:
         lo, hi = s.largest_stable_dt, s.smallest_unstable_dt
         s.frontier = f"between {lo:.4g} and {hi:.4g} ({(hi - lo) / lo:.1%} wide)"
