@@ -130,3 +130,18 @@ position = {list(map(float, pos))}
     if material:
         out += f"material = {material}\n"
     return out
+
+
+def oblique_impact_bodies(dim: int, material: str = '"rough"') -> str:
+    """An off-centre hit with friction and spin between a sphere (circle) and a turned box, then
+    the box on a third body: the momentum tests' scene (no gravity, no ground)."""
+    if dim == 3:
+        return (sphere("s", [0.0, 0.03, 0.02], velocity=[3.0, 0.0, 0.1], angular=[5, -2, 9],
+                       mass=0.7, material=material)
+                + box("b", [0.4, 0.0, 0.0], [0.2, 0.3, 0.25], mass=2.0,
+                      orientation="{ axis = [1.0, 2.0, 3.0], angle = 0.3 }", material=material)
+                + sphere("t", [0.75, -0.05, 0.04], radius=0.08, mass=0.4, material=material))
+    return (circle("s", [0.0, 0.03], velocity=[3.0, 0.1], angular=7.0, mass=0.7,
+                   material=material)
+            + box("b", [0.4, 0.0], [0.2, 0.3], mass=2.0, orientation="0.3", material=material)
+            + circle("t", [0.75, -0.05], radius=0.08, mass=0.4, material=material))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from contact_scenes import Run, box, circle, scene, sphere
+from contact_scenes import Run, box, circle, oblique_impact_bodies, scene, sphere
 
 MATERIALS = """[materials.dead]
 friction = 0.5
@@ -73,19 +73,7 @@ def _momenta(run: Run):
 def test_penalty_with_rk4_keeps_momentum_through_oblique_impacts_without_gravity(dim):
     # test_impulse_lcp.py's scene: an off-centre hit with friction and spin between a sphere and
     # a box, then the box on a third body
-    if dim == 3:
-        bodies = (sphere("s", [0.0, 0.03, 0.02], velocity=[3.0, 0.0, 0.1], angular=[5, -2, 9],
-                         mass=0.7, material='"rough"')
-                  + box("b", [0.4, 0.0, 0.0], [0.2, 0.3, 0.25], mass=2.0,
-                        orientation="{ axis = [1.0, 2.0, 3.0], angle = 0.3 }",
-                        material='"rough"')
-                  + sphere("t", [0.75, -0.05, 0.04], radius=0.08, mass=0.4, material='"rough"'))
-    else:
-        bodies = (circle("s", [0.0, 0.03], velocity=[3.0, 0.1], angular=7.0, mass=0.7,
-                         material='"rough"')
-                  + box("b", [0.4, 0.0], [0.2, 0.3], mass=2.0, orientation="0.3",
-                        material='"rough"')
-                  + circle("t", [0.75, -0.05], radius=0.08, mass=0.4, material='"rough"'))
+    bodies = oblique_impact_bodies(dim)
     run = Run(scene(bodies, dim=dim, gravity=False, ground=None, materials=MATERIALS), "rk4",
               "penalty")
     lin0, ang0 = _momenta(run)

@@ -89,13 +89,7 @@ def _mapped(scene: Scene, traj: Trajectory, engine: str, integrator: str) -> Eva
         note = f"the medium's closed form does not apply: {exc}"
     metrics = _plain(values)
     _notes(metrics, MAPPED_NOTES)
-    failure = traj.failure
-    blow_t = float(failure.get("time", 0.0)) if failure else None
-    blow_reason = (failure or {}).get("reason")
-    verdict = judge(scene, engine, integrator, metrics, blowup_time=blow_t,
-                    blowup_reason=blow_reason, missing_reason=note)
-    return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
-                      blowup_time=blow_t, blowup_reason=blow_reason, note=note)
+    return _judged(scene, engine, integrator, metrics, traj.failure, note)
 
 
 def _rigid(scene: Scene, traj: Trajectory, reference: Reference, engine: str,
@@ -125,6 +119,18 @@ def _rigid(scene: Scene, traj: Trajectory, reference: Reference, engine: str,
     return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
                       series=ms.series, blowup_time=ms.blowup_time,
                       blowup_reason=ms.blowup_reason, note=note, reference_end=ref_end)
+
+
+def _judged(scene: Scene, engine: str, integrator: str, metrics: dict[str, dict[str, Any]],
+            failure: dict | None, note: str | None) -> Evaluation:
+    """The verdict of metrics computed outside compute_metrics (a fluid record, a mapped
+    medium run), with the run's failure, if any, as its blow-up."""
+    blow_t = float(failure.get("time", 0.0)) if failure else None
+    blow_reason = (failure or {}).get("reason")
+    verdict = judge(scene, engine, integrator, metrics, blowup_time=blow_t,
+                    blowup_reason=blow_reason, missing_reason=note)
+    return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
+                      blowup_time=blow_t, blowup_reason=blow_reason, note=note)
 
 
 def _plain(values: dict[str, float | None]) -> dict[str, dict[str, Any]]:
@@ -161,10 +167,4 @@ def _fluid(scene: Scene, record, engine: str, integrator: str) -> Evaluation:
     from crosscheck.compare.fluid_metrics import DISC_SETTLING_NOTES
 
     _notes(metrics, DISC_SETTLING_NOTES)
-    failure = getattr(record, "failure", None)
-    blow_t = float(failure.get("time", 0.0)) if failure else None
-    blow_reason = (failure or {}).get("reason")
-    verdict = judge(scene, engine, integrator, metrics, blowup_time=blow_t,
-                    blowup_reason=blow_reason, missing_reason=note)
-    return Evaluation(verdict.status, verdict.reason, verdict.metrics, verdict.worst,
-                      blowup_time=blow_t, blowup_reason=blow_reason, note=note)
+    return _judged(scene, engine, integrator, metrics, getattr(record, "failure", None), note)
