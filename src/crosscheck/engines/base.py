@@ -47,6 +47,10 @@ class Engine(Protocol):
     def open(self, scene: Scene, integrator: str, dt: float) -> Session:
         """A session at the scene's t = 0 state (see engines/session.py)."""
 
+    def maps_fluid(self, scene: Scene) -> bool:
+        """True when the engine runs this fluid scene as a body in a stateless medium (a rigid
+        run whose Trajectory is the body's), not as a grid fluid."""
+
     def run(self, scene: Scene, integrator: str, dt: float) -> Trajectory: ...
 
 
@@ -64,6 +68,10 @@ class EngineBase:
 
     def version(self) -> str:  # pragma: no cover
         raise NotImplementedError
+
+    def maps_fluid(self, scene: Scene) -> bool:
+        """No engine maps a fluid scene to a medium unless it says so (MuJoCo does)."""
+        return False
 
     def not_applicable(self, scene: Scene, integrator: str) -> str | None:
         caps = self.capabilities()

@@ -346,8 +346,7 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     # A fluid scene is the grid fluid's, unless the engine stands for it by a stateless medium
     # (MuJoCo's mapped cylinder, scene/medium_map.py): then it is run as a rigid scene whose
     # Trajectory is the body's, in the fluid case's 2D convention.
-    maps_fluid = getattr(engine, "maps_fluid", None)
-    if scene.fluid is not None and not (maps_fluid is not None and maps_fluid(scene)):
+    if scene.fluid is not None and not engine.maps_fluid(scene):
         return _run_fluid(engine, scene, integrator, dt, cost)
     plan = sampling_plan(scene, dt)
     # Runs of under ten times the steps the prediction takes are simply run.

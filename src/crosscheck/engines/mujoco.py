@@ -72,7 +72,12 @@ from crosscheck.errors import CaseError
 from crosscheck.names import MEDIUM_MODELS, medium_run_names, rigid_names, split_run
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
 from crosscheck.scene.contact import GROUND
-from crosscheck.scene.medium_map import MappedCylinder, mapped_cylinder, unmappable
+from crosscheck.scene.medium_map import (
+    LENGTH_IN_RADII,
+    MappedCylinder,
+    mapped_cylinder,
+    unmappable,
+)
 from crosscheck.scene.model import Medium, Scene
 
 try:  # the registry imports this module lazily; a missing mujoco is "not applicable"
@@ -1221,8 +1226,6 @@ class MujocoModel:
 
 
 def _mapping_text() -> str:
-    from crosscheck.scene.medium_map import LENGTH_IN_RADII
-
     return (f"the fluid case's disc as a cylinder of the same radius and density along z, "
             f"{LENGTH_IN_RADII:g} radii long, in a medium of the fluid's density and dynamic "
             "viscosity (scene/medium_map.py); masses and forces scale with the length, "

@@ -42,6 +42,7 @@ import math
 
 import numpy as np
 
+from crosscheck.names import MEDIUM_MODELS as NAMED_MEDIUM_MODELS
 from crosscheck.scene.model import Scene
 from crosscheck.state import Trajectory
 
@@ -205,7 +206,7 @@ EXTRA_METRICS = {NAME: terminal_velocity_metrics}
 # Magnus lift): the same numbers as engines/mujoco.FLUIDCOEF_DEFAULT (a test checks they agree);
 # written here so the reference does not import MuJoCo.
 FLUIDCOEF_DEFAULT = (0.5, 0.25, 1.5, 1.0, 1.0)
-MEDIUM_MODELS = ("inertia_box", "ellipsoid")
+MEDIUM_MODELS = NAMED_MEDIUM_MODELS["mujoco"]  # the run names' models (names.py)
 
 
 def mapped_law(scene: Scene, model: str, fluidcoef=FLUIDCOEF_DEFAULT) -> dict:
