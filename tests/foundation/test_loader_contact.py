@@ -552,3 +552,31 @@ def test_the_contact_examples_in_the_docs_load_with_the_documented_values():
     # the worked example: rubber on the documented ground gives sqrt(0.9 x 0.1) and max(0.8, 0.2)
     assert pairs[("ball", "ground")].friction == pytest.approx(0.3)
     assert pairs[("ball", "ground")].restitution == 0.8
+
+
+def test_material_classes_give_every_pair_the_rule_s_values_with_a_table_that_does_not_grow():
+    """Adapters program engines from the class table, not from N^2 pairs: the table must give
+    every pair exactly pair_material's values, and a pile of one material must stay one class."""
+    from crosscheck.scene.contact import material_classes
+
+    case = base3d()
+    for k in range(12):  # more bodies of the existing materials, none named by an entry
+        case["bodies"].append({"name": f"extra{k}", "shape": {"sphere": {"radius": 0.1}},
+                               "mass": 1.0, "position": [float(k), 5.0, 1.0],
+                               "material": ("rubber", "steel")[k % 2]})
+    s = load(case)
+    classes = material_classes(s)
+    # ball, puck and wall are named by entries (own classes); steel (block, extras), rubber
+    # (extras), the ground's: 6 classes for 16 surfaces
+    assert classes.k == 6
+    assert {len(m) for m in classes.members} == {1, 7, 6}
+    listed = s.contact_pairs()
+    assert len(listed) == 15 * 14 // 2 + 15 + 15
+    for p in listed:
+        assert classes.value(p.a, p.b) == pair_material(s, p.a, p.b), p
+        assert classes.touches(p.a, p.b)
+    # every touching pair is in exactly one class pair, and nothing fixed-fixed is
+    from_classes = [frozenset(ab) for i, j in classes.class_pairs()
+                    for ab in classes.pairs_between(i, j)]
+    assert sorted(map(sorted, from_classes)) == sorted(sorted((p.a, p.b)) for p in listed)
+    assert not classes.touches("wall", "ground")

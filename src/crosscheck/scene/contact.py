@@ -109,18 +109,92 @@ def pairs(scene: Scene) -> tuple[ContactPair, ...]:
     fixed geometry, so static-static and static-ground pairs are not listed. Pairs disabled by
     ``collide = false`` are listed with ``material.collide`` False: adapters must filter them
     out, since every engine collides everything by default. A scene without ``contact`` has none.
+
+    N bodies make N (N - 1) / 2 body pairs: this list is for showing and checking a case. An
+    adapter programs its engine from :func:`material_classes`, whose size does not grow with N.
     """
     if not scene.effects.contact:
         return ()
+    classes = material_classes(scene)
     out = []
     names = scene.body_names
     for i, a in enumerate(names):
-        out.extend(ContactPair(a, b, "body-body", pair_material(scene, a, b))
-                   for b in names[i + 1:])
+        out.extend(ContactPair(a, b, "body-body", classes.value(a, b)) for b in names[i + 1:])
     for a in names:
-        out.extend(ContactPair(a, s, "body-static", pair_material(scene, a, s))
+        out.extend(ContactPair(a, s, "body-static", classes.value(a, s))
                    for s in scene.static_names)
     if scene.ground is not None:
-        out.extend(ContactPair(a, GROUND, "body-ground", pair_material(scene, a, GROUND))
+        out.extend(ContactPair(a, GROUND, "body-ground", classes.value(a, GROUND))
                    for a in names)
     return tuple(out)
+
+
+@dataclass(frozen=True)
+class MaterialClasses:
+    """The surfaces of a contact scene (bodies, statics, "ground") in classes such that the values
+    of a pair depend on the two classes alone: surfaces whose materials have equal values share a
+    class, and a surface named in a ``[[contact_pairs]]`` entry is a class of its own. A pile of N
+    bodies of one material is one or two classes, so an engine is programmed with a K x K table
+    (per-surface values, the engine's own combination rule, explicit pairs only where that rule
+    gives other values) instead of N^2 pairs.
+    """
+
+    surfaces: tuple[str, ...]  # bodies, then statics, then "ground"
+    fixed: frozenset[str]  # the statics and "ground": fixed geometry never touches fixed geometry
+    of: dict[str, int]  # surface name -> class
+    members: tuple[tuple[str, ...], ...]  # the surfaces of each class, in surface order
+    values: tuple[tuple[PairMaterial, ...], ...]  # K x K: values[i][j], i and j's surfaces
+
+    @property
+    def k(self) -> int:
+        return len(self.members)
+
+    def value(self, a: str, b: str) -> PairMaterial:
+        """The values of the pair (a, b), a != b: the same as :func:`pair_material`."""
+        return self.values[self.of[a]][self.of[b]]
+
+    def touches(self, a: str, b: str) -> bool:
+        """Whether a and b are a pair that can touch (two different surfaces, not both fixed)."""
+        return a != b and not (a in self.fixed and b in self.fixed)
+
+    def pairs_between(self, i: int, j: int):
+        """Every pair (a, b) that can touch with a in class i and b in class j (each unordered
+        pair once when i == j)."""
+        mi, mj = self.members[i], self.members[j]
+        for x, a in enumerate(mi):
+            for b in (mi[x + 1:] if i == j else mj):
+                if self.touches(a, b):
+                    yield a, b
+
+    def class_pairs(self):
+        """Every class pair (i, j), i <= j, holding at least one pair that can touch."""
+        for i in range(self.k):
+            for j in range(i, self.k):
+                if any(True for _ in self.pairs_between(i, j)):
+                    yield i, j
+
+
+def material_classes(scene: Scene) -> MaterialClasses:
+    """The scene's surfaces in material classes, each class pair's values from
+    :func:`pair_material` on one representative of each (the same values for every member)."""
+    named = {n for entry in scene.pair_overrides for n in (entry.a, entry.b)}
+    things = [(b.name, b.material) for b in scene.bodies]
+    things += [(s.name, s.material) for s in scene.statics]
+    if scene.ground is not None:
+        things.append((GROUND, scene.ground.material))
+    keys: dict[tuple, int] = {}
+    members: list[list[str]] = []
+    of: dict[str, int] = {}
+    for name, m in things:
+        key = (("named", name) if name in named else
+               ("values", m.friction, m.restitution, m.rolling_friction, m.torsional_friction))
+        if key not in keys:
+            keys[key] = len(members)
+            members.append([])
+        of[name] = keys[key]
+        members[keys[key]].append(name)
+    reps = [m[0] for m in members]
+    values = tuple(tuple(pair_material(scene, a, b) for b in reps) for a in reps)
+    fixed = frozenset(s.name for s in scene.statics) | ({GROUND} if scene.ground else set())
+    return MaterialClasses(tuple(n for n, _ in things), fixed, of,
+                           tuple(tuple(m) for m in members), values)

@@ -12,7 +12,8 @@ half-space, never in the broad phase). Shapes:
 * 2D: circle and convex polygon (a 2D box is the polygon of its four corners).
 
 The pair values come from :func:`crosscheck.scene.contact.pair_material`, the one pair rule, by
-*material class*: colliders whose material has the same values and whose name no
+*material class* (:func:`crosscheck.scene.contact.material_classes`, shared with the peer
+adapters): colliders whose material has the same values and whose name no
 ``[[contact_pairs]]`` entry names share a class (the rule depends on the values only), every
 named collider has a class of its own. The tables are K x K for K classes, so 5000 bodies of
 one material need a 1 x 1 table, not 5000 x 5000. ``pair_collide`` is False where an entry says
@@ -28,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from crosscheck.scene.contact import GROUND, pair_material
+from crosscheck.scene.contact import material_classes
 from crosscheck.scene.model import Scene
 from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
 from crosscheck.sim.collide.polytope import Polytope, box_polytope, hull_polytope
@@ -163,32 +164,15 @@ class PairTable(NamedTuple):
 
 
 def pair_table(scene: Scene) -> PairTable:
-    """Material classes and the K x K pair values, every entry from ``pair_material``."""
-    named = {n for entry in scene.pair_overrides for n in (entry.a, entry.b)}
-    things = [(b.name, b.material) for b in scene.bodies]
-    things += [(s.name, s.material) for s in scene.statics]
-    if scene.ground is not None:
-        things.append((GROUND, scene.ground.material))
-    keys: dict[tuple, int] = {}
-    representative: list[str] = []
-    cls = np.empty(len(things), dtype=np.int64)
-    for i, (name, m) in enumerate(things):
-        key = (("named", name) if name in named else
-               ("values", m.friction, m.restitution, m.rolling_friction, m.torsional_friction))
-        if key not in keys:
-            keys[key] = len(representative)
-            representative.append(name)
-        cls[i] = keys[key]
-    k = len(representative)
-    tables = {name: np.zeros((k, k)) for name in
-              ("friction", "restitution", "rolling_friction", "torsional_friction")}
-    collide = np.ones((k, k), dtype=np.bool_)
-    for i in range(k):
-        for j in range(i, k):
-            pm = pair_material(scene, representative[i], representative[j])
-            for name, table in tables.items():
-                table[i, j] = table[j, i] = getattr(pm, name)
-            collide[i, j] = collide[j, i] = pm.collide
+    """Material classes (:func:`crosscheck.scene.contact.material_classes`) and the K x K pair
+    values as arrays."""
+    classes = material_classes(scene)
+    cls = np.array([classes.of[name] for name in classes.surfaces], dtype=np.int64)
+    tables = {name: np.array([[getattr(v, name) for v in row] for row in classes.values],
+                             dtype=np.float64).reshape(classes.k, classes.k)
+              for name in ("friction", "restitution", "rolling_friction", "torsional_friction")}
+    collide = np.array([[v.collide for v in row] for row in classes.values],
+                       dtype=np.bool_).reshape(classes.k, classes.k)
     n_col = len(scene.bodies) + len(scene.statics)
     return PairTable(cls[:n_col].copy(), cls[n_col:].copy(), tables["friction"],
                      tables["restitution"], tables["rolling_friction"],

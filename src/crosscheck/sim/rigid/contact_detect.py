@@ -33,8 +33,11 @@ def new_contacts(capacity: int, dimension: int) -> Contacts:
 
 def pair_restitutions(scene) -> list[float]:
     """Every restitution a contact row of the scene can carry (the pair rule and overrides)."""
-    return sorted({float(p.material.restitution) for p in scene.contact_pairs()
-                   if p.material.collide} or {0.0})
+    from crosscheck.scene.contact import material_classes
+
+    classes = material_classes(scene)
+    return sorted({float(classes.values[i][j].restitution) for i, j in classes.class_pairs()
+                   if classes.values[i][j].collide} or {0.0})
 
 
 @njit(**INLINE)
