@@ -54,8 +54,10 @@ def _mujoco_defaults(model) -> None:
     m = model.model
     m.opt.cone = int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
     m.opt.impratio = 1.0
-    m.pair_solref[:] = [0.02, 1.0]
-    m.pair_solimp[:] = [0.9, 0.95, 0.001, 0.5, 2.0]
+    # the values sit on the geoms (MuJoCo's own collision) or on explicit pairs: both
+    for table in ("pair", "geom"):
+        getattr(m, f"{table}_solref")[:] = [0.02, 1.0]
+        getattr(m, f"{table}_solimp")[:] = [0.9, 0.95, 0.001, 0.5, 2.0]
 
 
 class VariantEngine(MujocoEngine):

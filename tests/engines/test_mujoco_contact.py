@@ -220,11 +220,12 @@ def test_settings_are_read_back():
     assert c["impratio"] == 10.0 and c["noslip_iterations"] == 0
     assert c["solver"] == "mjSOL_NEWTON" and c["iterations"] == 100 and c["tolerance"] == 1e-8
     assert "mjDSBL_CONTACT" not in traj.meta["effective"]["disableflags"]
-    (pair,) = c["pairs"]
+    (pair,) = c["pairs"]  # ball and ground share one material: one class, MuJoCo's collision
     assert set(pair["geoms"]) == {"g0", "ground"} and pair["condim"] == 3
     assert pair["friction"] == [0.5, 0.5, 0.0, 0.0, 0.0]
     assert pair["solref"] == list(SOLREF_INELASTIC) and pair["solimp"] == list(SOLIMP)
-    assert all(g["contype"] == 0 and g["conaffinity"] == 0 for g in c["geoms"])
+    assert pair["route"].startswith("MuJoCo's collision") and c["npair"] == 0
+    assert all(g["contype"] == 1 and g["conaffinity"] == 1 for g in c["geoms"])
 
 
 def test_condim_follows_the_pair_values():
@@ -246,6 +247,11 @@ def test_condim_follows_the_pair_values():
     scene = case(body("ball", SPHERE, (0, 0, 0.1), material=bad),
                  ground=f"[ground]\nmaterial = {bad}\n")
     assert "rolling or torsional friction without sliding" in ENGINE.not_applicable(scene, "euler")
+    # MuJoCo raises every coefficient of a contact to mjMINMU = 1e-5: a smaller one is refused
+    tiny = "{ friction = 1e-7 }"
+    scene = case(body("ball", SPHERE, (0, 0, 0.1), material=tiny),
+                 ground=f"[ground]\nmaterial = {tiny}\n")
+    assert "below mjMINMU" in ENGINE.not_applicable(scene, "euler")
 
 
 # -- pair values, not MuJoCo's max rule ----------------------------------------------------------
@@ -269,6 +275,41 @@ def test_pair_values_not_the_max_rule():
     assert traj.meta["effective"]["contact"]["pairs"][0]["source"] == "contact_pairs[0]"
 
 
+def test_every_contact_carries_its_pair_values_whichever_route_made_it():
+    """Same-material pairs go through MuJoCo's own collision (values on the geoms), the others
+    through explicit pairs: read every contact MuJoCo makes and compare its condim, friction,
+    solref and solimp with the pair rule's values. Three touching spheres on the ground: a and b
+    of the ground's material (dynamic), c of another (explicit pairs with b and the ground)."""
+    from crosscheck.engines.mujoco import MJMINMU, mujoco_values
+
+    r = 0.1
+    mats = {"a": '"m"', "b": '"m"', "c": "{ friction = 0.1, restitution = 0.5 }"}
+    bodies = "".join(body(n, SPHERE, (2 * k * (r - 1e-4), 0, r - 1e-4), material=mats[n])
+                     for k, n in enumerate(mats))
+    scene = case(bodies, mu=0.9)
+    model = ENGINE.build(scene, "euler", 1e-3)
+    m, d = model.model, model.data
+    mujoco.mj_forward(m, d)
+    name = {model._geom_of[n]: n for n in ("a", "b", "c", "ground")}
+    seen = set()
+    for k in range(d.ncon):
+        con = d.contact[k]
+        a, b = (name[mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(g))] for g in con.geom)
+        condim, friction, solref = mujoco_values(scene.pair_material(a, b), 1e-3)
+        # MuJoCo raises every coefficient of a contact to mjMINMU = 1e-5, on both routes
+        friction = tuple(max(MJMINMU, f) for f in friction)
+        assert (con.dim, tuple(con.friction), tuple(con.solref)) == (condim, friction, solref)
+        assert tuple(con.solimp) == SOLIMP
+        seen.add(frozenset((a, b)))
+    assert seen == {frozenset(p) for p in [("a", "b"), ("b", "c"), ("a", "ground"),
+                                           ("b", "ground"), ("c", "ground")]}
+    # two classes (a, b and the ground share the material "m"; c): one entry per class pair
+    same, mixed = sorted(model.effective()["contact"]["pairs"], key=lambda p: "c" in p.values())
+    assert same["route"].startswith("MuJoCo's collision") and same["count"] == 3
+    assert mixed["route"] == "one explicit <pair> each" and mixed["count"] == 3
+    assert m.npair == 3  # a-c, b-c and c-ground only
+
+
 def test_collide_false_pairs_do_not_collide():
     # Ball a falls onto ball b (which rests on the ground); a-b has collide = false, so a passes
     # through b and lands on the ground. Without the entry it rests on b, 0.2 m higher.
@@ -279,7 +320,10 @@ def test_collide_false_pairs_do_not_collide():
     assert through.com[-1, 0, 2] == pytest.approx(0.1, abs=1e-4)
     assert on_top.com[-1, 0, 2] == pytest.approx(0.3, abs=1e-3)
     c = through.meta["effective"]["contact"]
-    assert c["npair"] == 2 and c["collide_false"] == [["a", "b"]]
+    assert c["npair"] == 0 and c["collide_false"] == [["a", "b"]]
+    # a, b (named by the entry) and the ground are three classes; a-b share no bit
+    ga, gb = (next(g for g in c["geoms"] if g["name"] == n) for n in ("g0", "g1"))
+    assert ga["contype"] & gb["conaffinity"] == 0 and gb["contype"] & ga["conaffinity"] == 0
 
 
 # -- traps ---------------------------------------------------------------------------------------
@@ -298,7 +342,7 @@ def test_c1_inelastic_ball_does_not_bounce():
     assert rebound < 1e-5 and 0 < depth < 2e-5
     # Sensitivity: the "critically damped" hard row (2 dt, 1) rebounds 56 mm (trap C1).
     def hard(m):
-        m.pair_solref[:] = [2e-3, 1.0]
+        m.geom_solref[:] = [2e-3, 1.0]  # one material: MuJoCo's own collision, geom values
     rebound, _ = _rebound(simulate(scene, engine=Tweaked(hard)))
     assert rebound > 0.02
 
@@ -361,8 +405,8 @@ def test_c5_frictionless_box_is_condim_1_and_does_not_explode():
     assert abs(traj.com[-1, 0, 2] - 0.1) < 2e-5
 
     def trap(m):
-        m.pair_dim[:] = 3
-        m.pair_friction[:, :2] = 1e-7
+        m.geom_condim[:] = 3
+        m.geom_friction[:, 0] = 1e-7
         m.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         m.opt.noslip_iterations = 10
     bad = simulate(case(body("box", CUBE, (0, 0, 0.1)), mu=0.0), engine=Tweaked(trap))
@@ -384,8 +428,8 @@ def test_c6_static_friction_does_not_creep():
     def defaults(m):
         m.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         m.opt.impratio = 1.0
-        m.pair_solref[:] = [0.02, 1.0]
-        m.pair_solimp[:] = [0.9, 0.95, 0.001, 0.5, 2.0]
+        m.geom_solref[:] = [0.02, 1.0]
+        m.geom_solimp[:] = [0.9, 0.95, 0.001, 0.5, 2.0]
     assert simulate(scene, engine=Tweaked(defaults)).com[-1, 0, 0] > 5e-3
 
 

@@ -579,4 +579,6 @@ def test_material_classes_give_every_pair_the_rule_s_values_with_a_table_that_do
     from_classes = [frozenset(ab) for i, j in classes.class_pairs()
                     for ab in classes.pairs_between(i, j)]
     assert sorted(map(sorted, from_classes)) == sorted(sorted((p.a, p.b)) for p in listed)
+    for i, j in classes.class_pairs():
+        assert classes.count(i, j) == sum(1 for _ in classes.pairs_between(i, j))
     assert not classes.touches("wall", "ground")

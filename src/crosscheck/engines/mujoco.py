@@ -18,12 +18,15 @@ What is mapped how (docs/engines.md has the full table):
 * **Contact**, only with ``[effects] contact = true`` (otherwise ``mjDSBL_CONTACT``, no geoms and
   no contact option touched). One massless geom per body (3D shapes as themselves, a mesh
   collided as its convex hull; 2D shapes as prisms along z, the ground line as a plane
-  containing z), the ground as a plane and statics as world geoms, all with contype =
-  conaffinity = 0; each pair of ``Scene.contact_pairs()`` with ``collide`` gets an explicit
-  ``<pair>`` with exactly its values (MuJoCo's own rule, the max, is bypassed): condim 1/3/4/6,
-  friction (mu, mu, torsional, rolling, rolling), a non-bouncing solref for e = 0 and a direct
-  solref from the unilateral spring-dashpot's zeta(e) for e > 0. Elliptic cone, impratio 10, no
-  noslip. docs/engines.md, "Contact", has the measurements behind each setting.
+  containing z), the ground as a plane and statics as world geoms. Every pair gets exactly its
+  values, by material class (``collision_routes``): MuJoCo's own collision (contype /
+  conaffinity bits per class, the values on the geoms) where both classes' own values are the
+  pair's, so MuJoCo's combination rule returns them; an explicit ``<pair>`` per pair where it
+  would not (its rule takes the max friction); no common bit for ``collide = false``. Values:
+  condim 1/3/4/6, friction (mu, mu, torsional, rolling, rolling), a non-bouncing solref for
+  e = 0 and a direct solref from the unilateral spring-dashpot's zeta(e) for e > 0. Elliptic
+  cone, impratio 10, no noslip. docs/engines.md, "Contact", has the measurements behind each
+  setting.
 * **Springs** are spatial tendons between two sites with ``stiffness``, ``damping`` and
   ``springlength = (L0, L0)``: MuJoCo's tendon force is -k (L - L0) - c dL/dt along the line of
   the sites, exactly the scene's spring, and it is evaluated inside every RK4 stage.
@@ -71,7 +74,7 @@ from crosscheck.engines.session import StepFailure
 from crosscheck.errors import CaseError
 from crosscheck.names import MEDIUM_MODELS, medium_run_names, rigid_names, split_run
 from crosscheck.rotations import matrix_to_quat, quat_conj, quat_mul, quat_to_matrix
-from crosscheck.scene.contact import GROUND
+from crosscheck.scene.contact import GROUND, ContactPair, material_classes
 from crosscheck.scene.medium_map import (
     LENGTH_IN_RADII,
     MappedCylinder,
@@ -406,18 +409,89 @@ def pair_solref(pm, dt: float) -> tuple[float, float]:
 
 def contact_limits(scene: Scene) -> str | None:
     """Why MuJoCo cannot give this contact scene's pairs their values, or None."""
-    for pair in scene.contact_pairs():
-        pm = pair.material
+    classes = material_classes(scene)
+    for i, j in classes.class_pairs():
+        pm = classes.values[i][j]
         if not pm.collide:
             continue
+        a, b = next(classes.pairs_between(i, j))
         if pm.friction == 0.0 and (pm.rolling_friction > 0.0 or pm.torsional_friction > 0.0):
-            return (f"pair {pair.a!r}-{pair.b!r}: rolling or torsional friction without sliding "
+            return (f"pair {a!r}-{b!r}: rolling or torsional friction without sliding "
                     "friction has no MuJoCo contact dimension (condim 1 drops them, and the "
                     "elliptic cone scales every friction row by the sliding one)")
+        small = [(k, v) for k, v in (("friction", pm.friction),
+                                      ("torsional_friction", pm.torsional_friction),
+                                      ("rolling_friction", pm.rolling_friction))
+                 if 0.0 < v < MJMINMU]
+        if small:
+            k, v = small[0]
+            return (f"pair {a!r}-{b!r}: {k} {v:g} is below mjMINMU = {MJMINMU:g}, to which "
+                    "MuJoCo raises every friction coefficient of a contact")
         if 0.0 < pm.restitution < 1e-9:
-            return (f"pair {pair.a!r}-{pair.b!r}: restitution {pm.restitution:g} is neither 0 "
+            return (f"pair {a!r}-{b!r}: restitution {pm.restitution:g} is neither 0 "
                     "nor reachable by a linear spring-dashpot (below 1e-9)")
     return None
+
+
+# MuJoCo raises every friction coefficient of a contact to at least mjMINMU (mj_contactParam and
+# the explicit pairs alike; measured on 4.0.0): a declared 0 < mu < 1e-5 is refused, and a zero
+# torsional coefficient under condim 6 (rolling without torsional friction) acts as 1e-5 m.
+MJMINMU = 1e-5
+
+
+def mujoco_values(pm, dt: float) -> tuple:
+    """(condim, friction (mu, mu, torsional, rolling, rolling), solref) MuJoCo needs for a pair's
+    values; solimp, margin and gap are the same for every pair."""
+    friction = (pm.friction, pm.friction, pm.torsional_friction, pm.rolling_friction,
+                pm.rolling_friction)
+    return pair_condim(pm), friction, tuple(pair_solref(pm, dt))
+
+
+# MuJoCo's contype / conaffinity are 32-bit ints: one bit per material class, up to 31 classes
+# (a scene with more gives every pair that can touch an explicit <pair>, the slow route).
+MAX_CLASS_BITS = 31
+
+
+def collision_routes(scene: Scene, dt: float) -> dict[tuple[int, int], str]:
+    """How each class pair that can touch (``material_classes``) reaches its values in MuJoCo:
+
+    * "dynamic": MuJoCo's own collision (broad phase, contype / conaffinity) with the values on
+      the geoms. Its rule for two geoms (condim and friction the maximum, solref and solimp the
+      solmix-weighted mean) returns exactly the pair's values when both geoms carry them, so a
+      class pair is dynamic when the pair values are each class's own values (the pair rule on
+      one material gives that material);
+    * "explicit": one ``<pair>`` per body pair, with exactly its values (MuJoCo's rule would give
+      other values, e.g. the max friction where the pair rule asks for the geometric mean);
+    * "off": ``collide = false``; the classes' bits keep MuJoCo from colliding them.
+    """
+    classes = material_classes(scene)
+    own = [mujoco_values(classes.values[c][c], dt) for c in range(classes.k)]
+    routes = {}
+    for i, j in classes.class_pairs():
+        pm = classes.values[i][j]
+        if not pm.collide:
+            routes[(i, j)] = "off"
+        elif classes.k <= MAX_CLASS_BITS and mujoco_values(pm, dt) == own[i] == own[j]:
+            routes[(i, j)] = "dynamic"
+        else:
+            routes[(i, j)] = "explicit"
+    return routes
+
+
+def _restitution_model(e: float) -> str:
+    if e == 0.0:
+        return f"none: non-bouncing row (timeconst, dampratio) = {list(SOLREF_INELASTIC)}"
+    return ("direct solref (-k, -b) of a unilateral spring-dashpot with this restitution, "
+            f"contact lasting ~{RESTITUTION_STEPS} steps (approximate: docs/engines.md)")
+
+
+def _contact_pair(classes, a: str, b: str, pm) -> ContactPair:
+    """The pair (a, b) as ``Scene.contact_pairs`` lists it: the body first."""
+    if a in classes.fixed:
+        a, b = b, a
+    kind = ("body-ground" if b == GROUND else "body-static" if b in classes.fixed
+            else "body-body")
+    return ContactPair(a, b, kind, pm)
 
 
 def _quat_z_to(n: np.ndarray) -> np.ndarray:
@@ -530,11 +604,12 @@ class MujocoModel:
         return quat_to_matrix(q_p).T @ (np.asarray(local, float) - t)
 
     # -- contact geometry -----------------------------------------------------------------------
-    def _geom(self, name: str, shape, pos, quat, assets: list[str]) -> str:
-        """A collision geom (no mass: the compiler ignores geoms for inertia, inertiafromgeom is
-        false) for a shape at (pos, quat) in its parent's frame; only explicit pairs collide
-        (contype = conaffinity = 0)."""
-        frame = f'pos="{_v(pos)}" quat="{_v(quat)}" contype="0" conaffinity="0"'
+    def _geom(self, name: str, shape, pos, quat, assets: list[str],
+              collision: str = 'contype="0" conaffinity="0"') -> str:
+        """A geom (no mass: the compiler ignores geoms for inertia, inertiafromgeom is false) for
+        a shape at (pos, quat) in its parent's frame, with ``collision``: its contype /
+        conaffinity and contact values (the default collides with nothing)."""
+        frame = f'pos="{_v(pos)}" quat="{_v(quat)}" {collision}'
         kind = shape.kind
         if self.dim == 3:
             if kind == "sphere":
@@ -568,8 +643,34 @@ class MujocoModel:
         raise CaseError(self.scene.source, "shape", "a shape MuJoCo can collide", kind)
 
     def _contact_xml(self) -> tuple[dict[int, str], str, str, str]:
-        """(geom per body index, world geoms, assets, <contact> section) of a contact scene."""
+        """(geom per body index, world geoms, assets, <contact> section) of a contact scene.
+
+        Every geom carries its material class's values and one contype bit per class, its
+        conaffinity the bits of the classes it meets by MuJoCo's own collision
+        (``collision_routes``): MuJoCo's broad phase finds those contacts and its geom rule gives
+        them the pair values. Class pairs whose values MuJoCo's rule cannot give get one explicit
+        ``<pair>`` per pair (an explicit pair also replaces MuJoCo's own contact of the same two
+        geoms, measured on 4.0.0), and ``collide = false`` class pairs no bits in common.
+        """
         scene = self.scene
+        classes = material_classes(scene)
+        routes = collision_routes(scene, self.dt)
+        self._classes, self._routes = classes, routes
+        bits = classes.k <= MAX_CLASS_BITS
+        affinity = [0] * classes.k
+        for (i, j), route in routes.items():
+            if route == "dynamic":
+                affinity[i] |= 1 << j
+                affinity[j] |= 1 << i
+
+        def collision(name: str) -> str:
+            c = classes.of[name]
+            condim, friction, solref = mujoco_values(classes.values[c][c], self.dt)
+            ct, ca = (1 << c, affinity[c]) if bits else (0, 0)
+            return (f'contype="{ct}" conaffinity="{ca}" condim="{condim}" '
+                    f'friction="{_v([friction[0], friction[2], friction[3]])}" '
+                    f'solref="{_v(solref)}" solimp="{_v(SOLIMP)}" margin="0" gap="0"')
+
         assets: list[str] = []
         body_geoms: dict[int, str] = {}
         ident = np.array([1.0, 0.0, 0.0, 0.0])
@@ -582,7 +683,8 @@ class MujocoModel:
             else:
                 # The 2D MuJoCo body frame coincides with the declared body frame in the plane.
                 pos, quat = np.zeros(3), ident
-            body_geoms[i] = self._geom(f"g{i}", body.shape, pos, quat, assets)
+            body_geoms[i] = self._geom(f"g{i}", body.shape, pos, quat, assets,
+                                       collision(body.name))
             self._geom_of[body.name] = f"g{i}"
         world: list[str] = []
         for k, static in enumerate(scene.statics):
@@ -593,7 +695,8 @@ class MujocoModel:
                 pos = np.array([static.position[0], static.position[1], 0.0])
                 a = float(np.ravel(static.orientation)[0])
                 quat = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
-            world.append(self._geom(f"s{k}", static.shape, pos, quat, assets))
+            world.append(self._geom(f"s{k}", static.shape, pos, quat, assets,
+                                    collision(static.name)))
             self._geom_of[static.name] = f"s{k}"
         if scene.ground is not None:
             n = np.asarray(scene.ground.normal, float)
@@ -603,22 +706,23 @@ class MujocoModel:
             # A plane geom is its frame's x-y plane, its normal the frame's +z.
             world.append(f'<geom name="ground" type="plane" size="0 0 1" '
                          f'pos="{_v(n * scene.ground.offset)}" quat="{_v(_quat_z_to(n))}" '
-                         f'contype="0" conaffinity="0"/>')
+                         f'{collision(GROUND)}/>')
             self._geom_of[GROUND] = "ground"
         pairs = []
         self._pairs = []
-        for pair in scene.contact_pairs():
-            pm = pair.material
-            if not pm.collide:
+        for (i, j), route in routes.items():
+            if route != "explicit":
                 continue
-            g1, g2 = self._geom_of[pair.a], self._geom_of[pair.b]
-            solref = pair_solref(pm, self.dt)
-            friction = [pm.friction, pm.friction, pm.torsional_friction, pm.rolling_friction,
-                        pm.rolling_friction]
-            pairs.append(f'<pair name="p{len(self._pairs)}" geom1="{g1}" geom2="{g2}" '
-                         f'condim="{pair_condim(pm)}" friction="{_v(friction)}" '
-                         f'solref="{_v(solref)}" solimp="{_v(SOLIMP)}" margin="0" gap="0"/>')
-            self._pairs.append(pair)
+            pm = classes.values[i][j]
+            condim, friction, solref = mujoco_values(pm, self.dt)
+            for a, b in classes.pairs_between(i, j):
+                pair = _contact_pair(classes, a, b, pm)
+                g1, g2 = self._geom_of[pair.a], self._geom_of[pair.b]
+                pairs.append(f'<pair name="p{len(self._pairs)}" geom1="{g1}" geom2="{g2}" '
+                             f'condim="{condim}" friction="{_v(friction)}" '
+                             f'solref="{_v(solref)}" solimp="{_v(SOLIMP)}" margin="0" '
+                             'gap="0"/>')
+                self._pairs.append(pair)
         contact = f"<contact>{''.join(pairs)}</contact>" if pairs else ""
         asset = f"<asset>{''.join(assets)}</asset>" if assets else ""
         return body_geoms, "".join(world), asset, contact
@@ -738,7 +842,7 @@ class MujocoModel:
         dis = mujoco.mjtDisableBit
         flags = int(opt.disableflags)
         if self.contact:
-            # Only the explicit pairs collide (every geom has contype = conaffinity = 0).
+            # Contacts: the geoms' contype / conaffinity bits and the explicit pairs.
             flags &= ~int(dis.mjDSBL_CONTACT)
             c = CONTACT_OPTIONS
             opt.cone = int(getattr(mujoco.mjtCone, c["cone"]))
@@ -1039,28 +1143,51 @@ class MujocoModel:
                     f"vertices of {int(m.mesh_vertnum[mid])}" if m.mesh_graphadr[mid] >= 0
                     else "convex hull of the mesh")
             geoms.append(entry)
-        pairs = []
+        gid = {_name(m, mujoco.mjtObj.mjOBJ_GEOM, g): g for g in range(m.ngeom)}
+        first_pair = {}
         for k, pair in enumerate(self._pairs):
-            pairs.append({
-                "a": pair.a, "b": pair.b, "kind": pair.kind, "source": pair.material.source,
-                "geoms": [_name(m, mujoco.mjtObj.mjOBJ_GEOM, int(m.pair_geom1[k])),
-                          _name(m, mujoco.mjtObj.mjOBJ_GEOM, int(m.pair_geom2[k]))],
-                "condim": int(m.pair_dim[k]),
-                "friction": np.array(m.pair_friction[k]).tolist(),
-                "solref": np.array(m.pair_solref[k]).tolist(),
-                "solreffriction": np.array(m.pair_solreffriction[k]).tolist(),
-                "solimp": np.array(m.pair_solimp[k]).tolist(),
-                "margin": float(m.pair_margin[k]),
-                "gap": float(m.pair_gap[k]),
-                "restitution": pair.material.restitution,
-                "restitution_model": (
-                    "none: non-bouncing row (timeconst, dampratio) = "
-                    f"{list(SOLREF_INELASTIC)}" if pair.material.restitution == 0.0 else
-                    "direct solref (-k, -b) of a unilateral spring-dashpot with this "
-                    f"restitution, contact lasting ~{RESTITUTION_STEPS} steps (approximate: "
-                    "docs/engines.md)"),
-            })
-        disabled = [(p.a, p.b) for p in self.scene.contact_pairs() if not p.material.collide]
+            first_pair.setdefault((pair.a, pair.b), k)
+        pairs = []
+        classes = self._classes
+        # One entry per class pair: its route, how many pairs it holds, one of them by name, and
+        # the values MuJoCo holds for it (an explicit pair's row, or the two geoms' values).
+        for (i, j), route in self._routes.items():
+            pair = _contact_pair(classes, *next(classes.pairs_between(i, j)),
+                                 classes.values[i][j])
+            entry = {"a": pair.a, "b": pair.b, "kind": pair.kind, "count": classes.count(i, j),
+                     "route": {"dynamic": "MuJoCo's collision (contype / conaffinity), the "
+                                          "values on both geoms",
+                               "explicit": "one explicit <pair> each",
+                               "off": "collide = false: no contype / conaffinity bit in "
+                                      "common"}[route],
+                     "source": pair.material.source, "restitution": pair.material.restitution,
+                     "restitution_model": _restitution_model(pair.material.restitution)}
+            g1, g2 = gid[self._geom_of[pair.a]], gid[self._geom_of[pair.b]]
+            entry["geoms"] = [self._geom_of[pair.a], self._geom_of[pair.b]]
+            if route == "explicit":
+                k = first_pair[(pair.a, pair.b)]
+                entry.update(
+                    condim=int(m.pair_dim[k]), friction=np.array(m.pair_friction[k]).tolist(),
+                    solref=np.array(m.pair_solref[k]).tolist(),
+                    solreffriction=np.array(m.pair_solreffriction[k]).tolist(),
+                    solimp=np.array(m.pair_solimp[k]).tolist(), margin=float(m.pair_margin[k]),
+                    gap=float(m.pair_gap[k]))
+            elif route == "dynamic":
+                # Both geoms hold the same values (collision_routes), so MuJoCo's combination
+                # is those values; read them from the model, and refuse to report a mismatch.
+                held = [(int(m.geom_condim[g]), tuple(m.geom_friction[g]),
+                         tuple(m.geom_solref[g]), tuple(m.geom_solimp[g]),
+                         float(m.geom_margin[g]), float(m.geom_gap[g])) for g in (g1, g2)]
+                if held[0] != held[1]:
+                    raise RuntimeError(f"MuJoCo geoms {entry['geoms']} hold different contact "
+                                       f"values {held}: the dynamic route is wrong")
+                condim, fr, solref, solimp, margin, gap = held[0]
+                entry.update(condim=condim, friction=[fr[0], fr[0], fr[1], fr[2], fr[2]],
+                             solref=list(solref), solreffriction=[0.0, 0.0],
+                             solimp=list(solimp), margin=margin, gap=gap)
+            pairs.append(entry)
+        disabled = [[p["a"], p["b"]] for p, r in zip(pairs, self._routes.values(), strict=True)
+                    if r == "off"]
         timeconst = SOLREF_INELASTIC[0]
         return {
             "cone": mujoco.mjtCone(int(opt.cone)).name,
@@ -1073,11 +1200,11 @@ class MujocoModel:
             "refsafe": not (int(opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)),
             "inelastic_timeconst_in_force": max(timeconst, 2.0 * float(opt.timestep)),
             "npair": int(m.npair),
-            "default_collisions": "off: every geom has contype = conaffinity = 0; only the "
-                                  "pairs below collide",
+            "material_classes": [list(c) if len(c) <= 8 else [*c[:8], f"... {len(c)} in all"]
+                                 for c in classes.members],
             "geoms": geoms,
             "pairs": pairs,
-            "collide_false": [list(p) for p in disabled],
+            "collide_false": disabled,
             "extrusion_half_depth_2d": self._depth if self.dim == 2 else None,
         }
 

@@ -166,6 +166,16 @@ class MaterialClasses:
                 if self.touches(a, b):
                     yield a, b
 
+    def count(self, i: int, j: int) -> int:
+        """How many pairs ``pairs_between(i, j)`` yields, without listing them."""
+        fi = sum(n in self.fixed for n in self.members[i])
+        bi = len(self.members[i]) - fi
+        if i == j:
+            return bi * (bi - 1) // 2 + bi * fi
+        fj = sum(n in self.fixed for n in self.members[j])
+        bj = len(self.members[j]) - fj
+        return bi * bj + bi * fj + fi * bj
+
     def class_pairs(self):
         """Every class pair (i, j), i <= j, holding at least one pair that can touch."""
         for i in range(self.k):
