@@ -9,7 +9,9 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
   ``createMultiBody`` has no full-tensor argument. The mass is passed again on purpose: for a
   maximal-coordinate body ``localInertiaDiagonal`` alone sets the mass to 0 (a static body).
 * Without contact: no collision shape, collision filter group and mask 0, nothing collides (with
-  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``).
+  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``). The pair values are
+  factored into per-surface values over groups of interchangeable surfaces (material classes,
+  ``surface_groups``), never over the N^2 surface pairs (``contact_plan``).
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.

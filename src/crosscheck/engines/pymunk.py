@@ -5,9 +5,11 @@ Model (docs/engines.md, section Pymunk)
 * One ``pymunk.Body(mass, moment)`` per scene body. Without ``[effects] contact`` it has no shape
   (nothing collides). With contact each body gets one shape of mass 0 and density 0 (a shape with
   either would recompute the body's mass, moment and centre of gravity), statics get shapes on
-  ``space.static_body`` and the ground is a solid quadrilateral; one collision handler per pair
-  gives the pair's friction and restitution (``_add_contact``; docs/engines.md, Pymunk,
-  "Contact"). Set in this
+  ``space.static_body`` and the ground is a solid quadrilateral. One collision type per material
+  class (``scene.contact.material_classes``), its shapes sqrt of the class's friction and
+  restitution, so that Chipmunk's product of the two shapes' values is the pair's; a handler only
+  for the class pairs where it is not (``class_program``, ``_add_contact``; docs/engines.md,
+  Pymunk, "Contact"). Set in this
   order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
   body-frame origin (Chipmunk rotates about the centre of gravity and places it from the
   position), ``velocity`` = the centre-of-gravity velocity, ``angular_velocity``. ``moment`` is
