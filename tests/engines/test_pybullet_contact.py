@@ -113,6 +113,71 @@ def test_not_applicable_says_why():
     assert "do not factor" in engine.not_applicable(clash, "multibody")
 
 
+
+def static(name, position, *, friction=0.5, restitution=0.0):
+    return (f'\n[[statics]]\nname = "{name}"\nshape = {CUBE}\n'
+            f"position = {json.dumps(list(position))}\n"
+            f"material = {{ friction = {friction!r}, restitution = {restitution!r} }}\n")
+
+
+def pile(n, *, extra=""):
+    """n spheres of one material apart on the ground, two statics (one of the spheres' material)."""
+    text = "".join(body(f"s{i}", SPHERE, (3 * R * i, 0, 1.0)) for i in range(n))
+    text += static("w1", (0, 5, 1), friction=0.5) + static("w2", (0, -5, 1), friction=0.9)
+    return case(text + extra, ground=0.3, duration=0.01)
+
+
+def test_the_plan_factors_over_groups_what_it_factored_over_surfaces():
+    # the per-surface factors over the groups (surface_groups) are the least squares over every
+    # surface pair (factor_pairs on Scene.contact_pairs(), the adapter's way before the groups);
+    # static w1 shares the spheres' class but not their pairs (it never touches the ground): with
+    # one sphere the factors are not pinned by a triangle of bodies and the minimum-norm solution
+    # gives w1 another factor than the sphere's. A pair entry and collide = false on top.
+    from crosscheck.engines.pybullet import contact_plan
+    extra = (body("odd", SPHERE, (0, 3, 1.0), friction=0.2) + pair("s1", "ground", restitution=0.0)
+             + pair("s2", "odd", collide=False))
+    for scene in (pile(1), pile(7), pile(7, extra=extra)):
+        plan, why = contact_plan(scene, "multibody")
+        assert why is None
+        items = [*scene.body_names, *scene.static_names, "ground"]
+        pairs = [(q.a, q.b, q.material.friction) for q in scene.contact_pairs()
+                 if q.material.collide]
+        every, why = factor_pairs(items, pairs, "friction")
+        assert why is None
+        for name in items:
+            assert plan["friction"][name] == pytest.approx(every[name], rel=4e-16)
+        if scene.body_names == ("s0",):
+            assert plan["friction"]["w1"] != pytest.approx(plan["friction"]["s0"], rel=1e-3)
+        assert plan["filtered"] == ([("s2", "odd")] if "odd" in items else [])
+
+
+def test_opening_a_pile_does_not_go_through_every_pair(monkeypatch):
+    # the plan, the model and its read-back use the group pairs: with Scene.contact_pairs()
+    # (the N^2 list) made to fail, a pile still opens; the group pairs and the filters do not
+    # grow with N (one setCollisionFilterPair, for the one collide = false pair)
+    from crosscheck.engines import pybullet as pbm
+    from crosscheck.scene.model import Scene
+
+    calls = []
+    real = p.setCollisionFilterPair
+    monkeypatch.setattr(pbm._p, "setCollisionFilterPair",
+                        lambda *a, **k: calls.append(a) or real(*a, **k))
+    monkeypatch.setattr(Scene, "contact_pairs", lambda self: pytest.fail("N^2 pairs listed"))
+    sizes = []
+    for n in (5, 40):
+        scene = pile(n, extra=pair("s0", "s1", collide=False))
+        calls.clear()
+        model = get_engine("pybullet").open(scene, "maximal", 1e-3)
+        try:
+            c = model.effective()["contact"]
+            assert len(calls) == 1 and not model.check()
+            sizes.append(len(c["pairs"]))
+            assert sum(e["pairs"] for e in c["pairs"]) == n * (n - 1) // 2 + 2 * n + n
+        finally:
+            model.close()
+    assert sizes[0] == sizes[1]
+
+
 # -- C11: the restitution threshold and speculative contacts kill bounces ------------------------
 def test_c11_elastic_ball_bounces_back_to_its_height():
     scene = case(body("ball", SPHERE, (0, 0, R + 1.0))

@@ -133,9 +133,12 @@ def test_pair_friction_governs_the_slide():
     pair = traj.meta["effective"]["contact"]["pairs"][0]
     assert (pair["friction"], pair["restitution"], pair["source"]) == (mu, 0.0,
                                                                        "contact_pairs[0]")
-    # the shapes' own values stay 0: only the handler can have given friction
-    assert all(s["friction"] == 0.0 and s["elasticity"] == 0.0
-               for s in traj.meta["effective"]["contact"]["shapes"])
+    # the shapes carry sqrt of their materials (product 0.283, the rule's, not the pair's
+    # 0.3), so the override needs the pair's handler, which is there
+    shapes = {s["name"]: s for s in traj.meta["effective"]["contact"]["shapes"]}
+    assert (shapes["box"]["friction"], shapes["ground"]["friction"]) == (math.sqrt(0.8),
+                                                                         math.sqrt(0.1))
+    assert pair["handler"].startswith("pre_solve")
 
 
 def test_restitution_is_the_maximum_not_the_product():
@@ -316,3 +319,72 @@ def test_touching_start_is_warned_and_gaps_give_the_sequential_answer():
     assert "C17" in warnings[0]
     overlap = _cradle(-1e-9)  # an LCP's simultaneous answer, as MuJoCo and PyBullet give
     np.testing.assert_allclose(overlap.vel[-1, :, 0], [-1 / 3, 2 / 3, 2 / 3], atol=1e-4)
+
+
+# -- pair values by material class: Chipmunk's product where it is the pair's, handlers elsewhere
+def test_every_class_pair_gets_its_pair_values_in_chipmunk_s_arbiter():
+    # every surface overlapping every other at t = 0 (no gravity, one step): an arbiter for every
+    # pair that can touch, read in a wildcard post_solve (after the adapter's pre_solve, the
+    # values the solver used). Classes: b0 and b1 share one (its pairs with itself too); d and q
+    # share a restitution (their pair by the shapes' product), d and p do not (a handler); d and
+    # the ground have a friction override (a handler), ghost and b1 collide = false (never solved)
+    disk = "circle = { radius = 0.3 }"
+    text = (_body("b0", "box = { size = [0.4, 0.4] }", (0.0, 0.1), friction=0.6)
+            + _body("b1", "box = { size = [0.3, 0.5] }", (0.05, 0.12), friction=0.6)
+            + _body("d", disk, (0.02, 0.05), restitution=0.7)
+            + _body("q", disk, (-0.03, 0.1), friction=0.37, restitution=0.7)
+            + _body("p", "polygon = { vertices = [[-0.2, -0.2], [0.3, -0.1], [0.0, 0.3]] }",
+                    (0.0, 0.08), restitution=0.3)
+            + _body("ghost", disk, (0.01, 0.02), friction=0.9)
+            + _pair("d", "ground", friction=0.2) + _pair("ghost", "b1", collide=False)
+            + '\n[[statics]]\nname = "post"\nshape = { box = { size = [0.2, 0.2] } }\n'
+              "position = [0.0, 0.0]\nmaterial = { friction = 0.8, restitution = 0.1 }\n")
+    scene = _case(text, gravity=None, duration=0.001, sample=0.001,
+                  ground_extra="material = { friction = 0.45 }")
+    session = get_engine("pymunk").open(scene, INTEGRATOR, 1e-3)
+    assert not session.check()
+    name = {id(shape): n for n, shape in session.shapes.items()}
+    seen = {}
+
+    def post(arbiter, space, data):
+        a, b = (name[id(s)] for s in arbiter.shapes)
+        seen[frozenset((a, b))] = (arbiter.friction, arbiter.restitution)
+
+    session.space.on_collision(None, None, post_solve=post)
+    session.space.step(1e-3)
+    classes = session.classes
+    want = {frozenset((a, b)) for q in session.class_pairs
+            for a, b in classes.pairs_between(q.i, q.j) if q.material.collide}
+    assert set(seen) == want  # every colliding pair met, the collide = false one never
+    how = {(q.i, q.j): q.how for q in session.class_pairs}
+    assert sorted(set(how.values())) == ["begin", "pre_solve", "shapes"]
+    for key, (friction, restitution) in seen.items():
+        a, b = sorted(key)
+        m = classes.value(a, b)
+        i, j = sorted((classes.of[a], classes.of[b]))
+        if how[(i, j)] == "pre_solve":  # the handler's values, exactly
+            assert (friction, restitution) == (m.friction, m.restitution)
+        else:  # Chipmunk's own product of the shapes' sqrt values: the rule to 2 ulp
+            assert abs(friction - m.friction) <= 2 * math.ulp(m.friction), (a, b)
+            assert abs(restitution - m.restitution) <= 2 * math.ulp(m.restitution), (a, b)
+    # the ones that need a handler: the override, and different restitutions (max, not product)
+    assert how[tuple(sorted((classes.of["d"], classes.of["ground"])))] == "pre_solve"
+    assert how[tuple(sorted((classes.of["d"], classes.of["p"])))] == "pre_solve"
+    assert how[tuple(sorted((classes.of["d"], classes.of["q"])))] == "shapes"
+    assert how[(classes.of["b0"], classes.of["b1"])] == "shapes"
+
+
+def test_collision_handlers_do_not_grow_with_the_number_of_bodies():
+    # n disks of one material apart on the ground, one override and one collide = false: two
+    # handlers whatever n is (before: one per pair, n (n + 1) / 2); the read-back lists class
+    # pairs, and finds the one touching pair (C17) without measuring every pair
+    counts = []
+    for n in (5, 30):
+        text = "".join(_disk(f"d{i}", (3 * R * i, R + 0.01 * (i > 0))) for i in range(n))
+        text += _pair("d0", "ground", friction=0.2) + _pair("d1", "d2", collide=False)
+        session = get_engine("pymunk").open(_case(text, duration=0.01), INTEGRATOR, 1e-3)
+        assert not session.check()
+        c = session.effective()["contact"]
+        counts.append((len(session.space._handlers), c["handlers"], len(c["pairs"])))
+        assert len(c["warnings"]) == 1 and "'d0' and 'ground' start touching" in c["warnings"][0]
+    assert counts[0] == counts[1] and counts[0][0] == 2

@@ -9,7 +9,9 @@ Model (docs/engines.md, section PyBullet, has the measurements behind each choic
   ``createMultiBody`` has no full-tensor argument. The mass is passed again on purpose: for a
   maximal-coordinate body ``localInertiaDiagonal`` alone sets the mass to 0 (a static body).
 * Without contact: no collision shape, collision filter group and mask 0, nothing collides (with
-  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``).
+  contact: docs/engines.md, PyBullet, "Contact"; ``_build_contact``). The pair values are
+  factored into per-surface values over groups of interchangeable surfaces (material classes,
+  ``surface_groups``), never over the N^2 surface pairs (``contact_plan``).
 * Reading: ``getBasePositionAndOrientation`` gives the centre of mass and the orientation of the
   *inertial* frame; the declared frame's orientation is ``q_inertial * conj(q_V)``.
   ``getBaseVelocity`` gives the centre-of-mass velocity and the angular velocity, both world.
@@ -147,50 +149,119 @@ MAXIMAL_2D_CONTACT: str | None = (
     "multibody chain stays in the plane exactly (benchmarks/contact_pybullet_2d.py)")
 
 
-def factor_pairs(items: list[str], pairs: list[tuple[str, str, float]],
-                 what: str) -> tuple[dict[str, float], str | None]:
-    """Per-surface values ``f`` with ``f[a] * f[b] == value`` for every pair (Bullet's product
+def factor_pairs(items: list[str], pairs: list[tuple], what: str,
+                 sizes: dict[str, int] | None = None
+                 ) -> tuple[dict[str, float], str | None]:
+    """Per-item values ``f`` with ``f[a] * f[b] == value`` for every pair (Bullet's product
     rule), or the reason none exist.
 
-    Zeros first: a surface all of whose pairs are 0 gets 0 (it then zeroes only pairs that are 0
-    anyway); a pair of 0 whose two surfaces both have a positive pair cannot be a product. The
+    Zeros first: an item all of whose pairs are 0 gets 0 (it then zeroes only pairs that are 0
+    anyway); a pair of 0 whose two items both have a positive pair cannot be a product. The
     positive pairs are solved in log space (least squares, minimum norm: a body alone on the
     ground gets sqrt(value) on both, CONTACTS.md's recipe) and every pair is checked to
     ``PAIR_TOLERANCE``: a set of pair values that does not factor (e.g. a-b 0.3, b-c 0.3,
     a-c 0.5 with a-b-c a triangle) is reported with the pair that misses.
+
+    A pair is ``(a, b, value)``, or ``(a, b, value, count, shown)`` when the items are groups
+    of interchangeable surfaces (``surface_groups``): ``sizes[item]`` surfaces each, the pair
+    standing for ``count`` surface pairs, named ``shown`` in a reason. The least squares is then
+    weighted so that it is the one over the surfaces themselves (each row weighted by its count,
+    the norm by the group sizes: z = sqrt(size) log f), whose minimum-norm solution gives
+    interchangeable surfaces equal values: the same factors as solving per surface, at the cost
+    of the groups (with groups of one surface and one pair each, the very same matrix).
     """
+    sizes = sizes or {}
+    pairs = [(*q, 1, (q[0], q[1])) if len(q) == 3 else tuple(q) for q in pairs]
     out = {name: 1.0 for name in items}
     positive: dict[str, bool] = {name: False for name in items}
-    for a, b, v in pairs:
+    for a, b, v, _, _ in pairs:
         if v > 0:
             positive[a] = positive[b] = True
     for name in items:
         if not positive[name]:
             out[name] = 0.0
-    for a, b, v in pairs:
+    for a, b, v, _, (sa, sb) in pairs:
         if v == 0 and positive[a] and positive[b]:
-            return out, (f"{what} 0 on pair {a!r}-{b!r} is not a product of per-surface "
+            return out, (f"{what} 0 on pair {sa!r}-{sb!r} is not a product of per-surface "
                          f"values: both surfaces have pairs with {what} > 0")
-    pos = [(a, b, v) for a, b, v in pairs if v > 0]
+    pos = [q for q in pairs if q[2] > 0]
     if pos:
-        names = sorted({n for a, b, _ in pos for n in (a, b)}, key=items.index)
+        order = {n: i for i, n in enumerate(items)}
+        names = sorted({n for a, b, *_ in pos for n in (a, b)}, key=order.__getitem__)
         col = {n: i for i, n in enumerate(names)}
+        scale = {n: math.sqrt(sizes.get(n, 1)) for n in names}  # x = z / sqrt(size)
         m = np.zeros((len(pos), len(names)))
         rhs = np.empty(len(pos))
-        for k, (a, b, v) in enumerate(pos):
-            m[k, col[a]] += 1.0
-            m[k, col[b]] += 1.0
-            rhs[k] = math.log(v)
-        x = np.linalg.lstsq(m, rhs, rcond=None)[0]
+        for k, (a, b, v, count, _) in enumerate(pos):
+            w = math.sqrt(count)  # a row standing for count equal rows
+            m[k, col[a]] += w / scale[a]
+            m[k, col[b]] += w / scale[b]
+            rhs[k] = w * math.log(v)
+        z = np.linalg.lstsq(m, rhs, rcond=None)[0]
         for n in names:
-            out[n] = math.exp(float(x[col[n]]))
-        for a, b, v in pos:
+            out[n] = math.exp(float(z[col[n]]) / scale[n])
+        for a, b, v, _, (sa, sb) in pos:
             got = out[a] * out[b]
             if abs(got - v) > PAIR_TOLERANCE * v:
                 return out, (f"the pair values of {what} do not factor into per-surface values "
-                             f"(Bullet multiplies them): pair {a!r}-{b!r} wants {v:g}, the best "
+                             f"(Bullet multiplies them): pair {sa!r}-{sb!r} wants {v:g}, the best "
                              f"factors give {got:.6g}")
     return out, None
+
+
+@dataclass(frozen=True)
+class GroupPair:
+    """Two surface groups that can touch (``surface_groups``): ``count`` surface pairs, all with
+    the values ``material``; ``a``-``b`` the first of them in ``Scene.contact_pairs()`` order
+    (the one a reason names, as when every pair was checked)."""
+
+    g: int
+    h: int
+    count: int
+    a: str
+    b: str
+    kind: str  # the kind of the pair a-b: "body-body", "body-static" or "body-ground"
+    material: Any  # PairMaterial
+
+
+def surface_groups(scene: Scene):
+    """The surfaces of a contact scene in groups whose members are interchangeable for Bullet:
+    a material class (``scene.contact.material_classes``) split into its bodies and its fixed
+    surfaces (a body touches every other surface, a static or the ground touches bodies only,
+    so a body and a static of one class do not have the same pairs and their factors may
+    differ). Returns (classes, groups, group pairs): groups in the order of their first
+    surface (bodies first), each group's class ``classes.of[group[0]]``; the group pairs that
+    hold at least one pair that can touch, in the order of their first pair in
+    ``Scene.contact_pairs()``. Their number grows with the number of classes, not of bodies.
+    """
+    from crosscheck.scene.contact import GROUND, material_classes
+
+    classes = material_classes(scene)
+    pos = {name: i for i, name in enumerate(classes.surfaces)}
+    split: dict[tuple[int, bool], list[str]] = {}
+    for name in classes.surfaces:
+        split.setdefault((classes.of[name], name in classes.fixed), []).append(name)
+    keys = list(split)  # in the order of first members; bodies come before fixed surfaces
+    groups = [tuple(split[k]) for k in keys]
+    out = []
+    for g, (cg, fixed_g) in enumerate(keys):
+        for h in range(g, len(keys)):
+            ch, fixed_h = keys[h]
+            mg, mh = groups[g], groups[h]
+            if fixed_g and fixed_h:  # fixed geometry never touches fixed geometry
+                continue
+            if g == h:  # a group of bodies with itself: every two of its members
+                if len(mg) < 2:
+                    continue
+                count, a, b = len(mg) * (len(mg) - 1) // 2, mg[0], mg[1]
+            else:  # g < h: g's first member comes first, a body (bodies precede fixed ones)
+                count, a, b = len(mg) * len(mh), mg[0], mh[0]
+            kind = ("body-body" if not fixed_h else
+                    "body-ground" if b == GROUND else "body-static")
+            out.append(GroupPair(g, h, count, a, b, kind, classes.values[cg][ch]))
+    rank = {"body-body": 0, "body-static": 1, "body-ground": 2}
+    out.sort(key=lambda q: (rank[q.kind], pos[q.a], pos[q.b]))
+    return classes, groups, out
 
 
 def contact_plan(scene: Scene, integrator: str | None = None
@@ -201,7 +272,11 @@ def contact_plan(scene: Scene, integrator: str | None = None
     friction / resting / stacks: default contact parameters), "impact" when every one has
     restitution > 0 (restitution threshold, slop, processing threshold, contact ERP and warm
     starting 0); a mix is not applicable (C12). ``friction`` / ``restitution``: per surface
-    (body, static, "ground"), each pair's value their product.
+    (body, static, "ground"), each pair's value their product. ``groups`` / ``group_pairs``
+    (``surface_groups``): the checks and the factoring run over the group pairs, whose number
+    does not grow with the number of bodies (a pile of N bodies of one material is a handful),
+    not over the N^2 surface pairs; the per-surface values are the factoring over the surfaces
+    themselves (``factor_pairs``). ``filtered``: the surface pairs of ``collide = false``.
 
     2D: every shape is a prism along z, ``extrusion_half_depth`` either side of the plane (a
     circle a cylinder, a box a box, a polygon the convex hull of its prism), the ground line a
@@ -215,46 +290,56 @@ def contact_plan(scene: Scene, integrator: str | None = None
     """
     if scene.dimension == 2 and integrator == "maximal" and MAXIMAL_2D_CONTACT is not None:
         return None, MAXIMAL_2D_CONTACT
-    from crosscheck.scene.contact import GROUND
-
-    items = list(scene.body_names) + list(scene.static_names)
-    if scene.ground is not None:
-        items.append(GROUND)
-    colliding = [p for p in scene.contact_pairs() if p.material.collide]
-    for p in colliding:
-        m = p.material
+    classes, groups, group_pairs = surface_groups(scene)
+    colliding = [q for q in group_pairs if q.material.collide]
+    for q in colliding:  # in pair order: the first offending group pair names the first pair
+        m = q.material
         if m.rolling_friction > 0 or m.torsional_friction > 0:
             what = "rolling" if m.rolling_friction > 0 else "torsional"
             value = m.rolling_friction if m.rolling_friction > 0 else m.torsional_friction
-            return None, (f"{what} friction is not mapped for PyBullet (pair {p.a!r}-{p.b!r} "
+            return None, (f"{what} friction is not mapped for PyBullet (pair {q.a!r}-{q.b!r} "
                           f"has {what}_friction = {value:g} m): Bullet combines it as "
                           "r_a mu_b + r_b mu_a with the lateral frictions "
                           "(btManifoldResult::calculateCombinedRollingFriction), not a product, "
                           "and that mapping was not built or measured")
         if m.friction > MAX_FRICTION:
-            return None, (f"pair {p.a!r}-{p.b!r} has friction {m.friction:g}: Bullet clamps a "
+            return None, (f"pair {q.a!r}-{q.b!r} has friction {m.friction:g}: Bullet clamps a "
                           f"combined friction to {MAX_FRICTION:g}")
-    friction, why = factor_pairs(items, [(p.a, p.b, p.material.friction) for p in colliding],
-                                 "friction")
+    # the groups by their first surface (unique), each standing for len(group) surfaces
+    items = [grp[0] for grp in groups]
+    sizes = {grp[0]: len(grp) for grp in groups}
+
+    def rows(value: str) -> list[tuple]:
+        return [(groups[q.g][0], groups[q.h][0], getattr(q.material, value), q.count,
+                 (q.a, q.b)) for q in colliding]
+
+    def per_surface(factors: dict[str, float]) -> dict[str, float]:
+        return {name: factors[grp[0]] for grp in groups for name in grp}
+
+    friction, why = factor_pairs(items, rows("friction"), "friction", sizes)
     if why is not None:
         return None, why
-    bouncy = [p for p in colliding if p.material.restitution > 0]
+    bouncy = [q for q in colliding if q.material.restitution > 0]
     if bouncy and len(bouncy) < len(colliding):
-        dead = next(p for p in colliding if p.material.restitution == 0)
+        dead = next(q for q in colliding if q.material.restitution == 0)
         return None, ("mixed restitution: pair "
                       f"{bouncy[0].a!r}-{bouncy[0].b!r} has e = "
                       f"{bouncy[0].material.restitution:g} and pair {dead.a!r}-{dead.b!r} e = 0; "
                       "PyBullet has no one setting for both (CONTACTS.md C12: exact bounces need "
                       "contact ERP 0, which never corrects a resting penetration)")
-    restitution, why = factor_pairs(
-        items, [(p.a, p.b, p.material.restitution) for p in colliding], "restitution")
+    restitution, why = factor_pairs(items, rows("restitution"), "restitution", sizes)
     if why is not None:
         return None, why
     masses = [float(b.mass) for b in scene.bodies]
     ratio = max(masses) / min(masses)
-    return {"kind": "impact" if bouncy else "resting", "friction": friction,
-            "restitution": restitution, "mass_ratio": ratio,
-            "iterations": CONTACT_ITERATIONS_HEAVY if ratio >= HEAVY_RATIO else None}, None
+    # collide = false comes from [[contact_pairs]] entries only, whose surfaces are classes of
+    # their own: one filter per such pair, never per pair of a class
+    filtered = [pair for q in group_pairs if not q.material.collide
+                for pair in classes.pairs_between(classes.of[q.a], classes.of[q.b])]
+    return {"kind": "impact" if bouncy else "resting", "friction": per_surface(friction),
+            "restitution": per_surface(restitution), "mass_ratio": ratio,
+            "iterations": CONTACT_ITERATIONS_HEAVY if ratio >= HEAVY_RATIO else None,
+            "groups": groups, "group_pairs": group_pairs, "filtered": filtered}, None
 
 
 def extrusion_half_depth(scene: Scene) -> float:
@@ -706,11 +791,10 @@ class PybulletModel:
             _p.setCollisionFilterGroupMask(uid, -1, 1, 1, physicsClientId=cid)
             self.surfaces[GROUND] = uid
             self.surface_links[GROUND] = -1
-        for pair in scene.contact_pairs():
-            if not pair.material.collide:
-                _p.setCollisionFilterPair(self.surfaces[pair.a], self.surfaces[pair.b],
-                                          self.surface_links[pair.a],
-                                          self.surface_links[pair.b], 0, physicsClientId=cid)
+        # the plan lists the collide = false pairs (from the group pairs, not from all N^2)
+        for a, b in self.plan["filtered"]:
+            _p.setCollisionFilterPair(self.surfaces[a], self.surfaces[b], self.surface_links[a],
+                                      self.surface_links[b], 0, physicsClientId=cid)
 
     @property
     def _shape_link(self) -> int:
@@ -1103,23 +1187,29 @@ class PybulletModel:
             if read[name] != want:
                 problems.append(f"{name!r}: friction/restitution read back {read[name]}, "
                                 f"asked {want}")
+        # One entry per group pair (surface_groups), not per surface pair: every surface's
+        # factors were read back and checked against the plan above, and all the surfaces of a
+        # group have the same, so the product of the first pair's read values is the product of
+        # every pair of the group pair.
         pairs = []
-        for pair in self.scene.contact_pairs():
-            m = pair.material
-            entry: dict[str, Any] = {"a": pair.a, "b": pair.b, "source": m.source,
-                                     "collide": m.collide}
+        groups = plan["groups"]
+        for q in plan["group_pairs"]:
+            m = q.material
+            entry: dict[str, Any] = {"a": q.a, "b": q.b, "kind": q.kind, "source": m.source,
+                                     "collide": m.collide, "pairs": q.count,
+                                     "group_sizes": [len(groups[q.g]), len(groups[q.h])]}
             if m.collide:
-                fr = read[pair.a][0] * read[pair.b][0]
-                er = read[pair.a][1] * read[pair.b][1]
+                fr = read[q.a][0] * read[q.b][0]
+                er = read[q.a][1] * read[q.b][1]
                 entry.update(friction=m.friction, restitution=m.restitution,
                              bullet_friction=fr, bullet_restitution=er)
                 for what, got, want in (("friction", fr, m.friction),
                                         ("restitution", er, m.restitution)):
                     if abs(got - want) > PAIR_TOLERANCE * want:
-                        problems.append(f"pair {pair.a!r}-{pair.b!r}: Bullet's {what} "
-                                        f"product {got!r}, pair value {want!r}")
+                        problems.append(f"pair {q.a!r}-{q.b!r} ({q.count} pairs): Bullet's "
+                                        f"{what} product {got!r}, pair value {want!r}")
             else:
-                entry["filter"] = "setCollisionFilterPair(enable=0)"
+                entry["filter"] = "setCollisionFilterPair(enable=0) on each of its pairs"
             pairs.append(entry)
         impact = self._impact
         default = "Bullet's default (not set)"
@@ -1144,7 +1234,10 @@ class PybulletModel:
                        "a shape and filter group/mask 1"),
             "extrusion_half_depth_2d": self._depth if self.dim == 2 else None,
             "combination": "Bullet multiplies the two surfaces' values; each surface carries "
-                           "a factor of every pair value (solved in log space, checked per pair)",
+                           "a factor of every pair value (solved in log space over groups of "
+                           "interchangeable surfaces, checked per group pair)",
+            "pairs_listed": "one entry per group pair (its first pair a-b; 'pairs' surface "
+                            "pairs share its values), not per surface pair",
             "surfaces": surfaces,
             "pairs": pairs,
             "num_solver_iterations": params["numSolverIterations"],

@@ -5,9 +5,11 @@ Model (docs/engines.md, section Pymunk)
 * One ``pymunk.Body(mass, moment)`` per scene body. Without ``[effects] contact`` it has no shape
   (nothing collides). With contact each body gets one shape of mass 0 and density 0 (a shape with
   either would recompute the body's mass, moment and centre of gravity), statics get shapes on
-  ``space.static_body`` and the ground is a solid quadrilateral; one collision handler per pair
-  gives the pair's friction and restitution (``_add_contact``; docs/engines.md, Pymunk,
-  "Contact"). Set in this
+  ``space.static_body`` and the ground is a solid quadrilateral. One collision type per material
+  class (``scene.contact.material_classes``), its shapes sqrt of the class's friction and
+  restitution, so that Chipmunk's product of the two shapes' values is the pair's; a handler only
+  for the class pairs where it is not (``class_program``, ``_add_contact``; docs/engines.md,
+  Pymunk, "Contact"). Set in this
   order: ``center_of_gravity = Body.com`` (body-frame point), ``angle``, then ``position`` = the
   body-frame origin (Chipmunk rotates about the centre of gravity and places it from the
   position), ``velocity`` = the centre-of-gravity velocity, ``angular_velocity``. ``moment`` is
@@ -56,6 +58,7 @@ differs or numba is missing; ``meta["effective"]["recording"]`` says which ran.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -165,7 +168,7 @@ def _world_vertices(shape, position, angle) -> np.ndarray:
     return v @ np.array([[c, s], [-s, c]]) + np.asarray(position, float)
 
 
-def initial_gap(scene: Scene, a: str, b: str) -> float:
+def initial_gap(scene: Scene, a: str, b: str, things: dict | None = None) -> float:
     """The distance between a and b at t = 0 (negative: overlapping; only its closeness to zero
     is used): circle centres and radii, polygon vertices against the other's signed distance
     (between convex polygons the nearest points include a vertex), the ground's line."""
@@ -173,7 +176,8 @@ def initial_gap(scene: Scene, a: str, b: str) -> float:
     from crosscheck.scene.shapes import Placed
 
     def geometry(name):
-        thing = next(t for t in (*scene.bodies, *scene.statics) if t.name == name)
+        thing = (things[name] if things is not None else
+                 next(t for t in (*scene.bodies, *scene.statics) if t.name == name))
         angle = float(np.asarray(thing.orientation).reshape(-1)[0])
         placed = Placed(thing.shape, thing.position, thing.orientation)
         if thing.shape.kind == "circle":
@@ -192,6 +196,103 @@ def initial_gap(scene: Scene, a: str, b: str) -> float:
     if rb:
         return float(pa.signed_distance(vb)[0]) - rb
     return min(float(np.min(pb.signed_distance(va))), float(np.min(pa.signed_distance(vb))))
+
+
+# Chipmunk's arbiter values are the products of the two shapes' (cpArbiterUpdate). A class pair
+# whose product of the shapes' values is within this many ulp of the pair's value is left to
+# Chipmunk (no handler); sqrt(x) * sqrt(y) against sqrt(x * y) differs by at most ~1 ulp.
+PRODUCT_ULPS = 2
+
+
+@dataclass(frozen=True)
+class ClassPair:
+    """Two material classes that can touch, and how Chipmunk is given their pair values:
+    ``how`` "shapes" (the product of the shapes' values is the pair's: no handler), "pre_solve"
+    (a handler sets the arbiter's friction and restitution) or "begin" (collide = false)."""
+
+    i: int
+    j: int
+    a: str  # a pair of the two classes that can touch, for messages and the read-back
+    b: str
+    material: Any  # PairMaterial
+    how: str
+    product: tuple[float, float]  # the shapes' friction and elasticity products
+
+
+def _close(x: float, y: float) -> bool:
+    return abs(x - y) <= PRODUCT_ULPS * math.ulp(y)
+
+
+def class_program(scene: Scene):
+    """How a contact scene's pair values reach Chipmunk: (classes, per-class shape values
+    (friction, elasticity), class pairs). One collision type per material class
+    (``scene.contact.material_classes``), its shapes given sqrt of the class's friction and
+    restitution: the product of two shapes' frictions is then the geometric mean (the pair
+    rule) and that of their elasticities the pair's maximum when both classes have the same
+    restitution. Handlers only for class pairs where that product is not the pair value (an
+    override, or two different restitutions) or the pair does not collide: their number does
+    not grow with the number of bodies."""
+    from crosscheck.scene.contact import GROUND, material_classes
+
+    classes = material_classes(scene)
+    materials = {t.name: t.material for t in (*scene.bodies, *scene.statics)}
+    if scene.ground is not None:
+        materials[GROUND] = scene.ground.material
+    shape_values = [(math.sqrt(materials[m[0]].friction), math.sqrt(materials[m[0]].restitution))
+                    for m in classes.members]
+    out = []
+    for i, j in classes.class_pairs():
+        a, b = next(classes.pairs_between(i, j))
+        m = classes.values[i][j]
+        product = (shape_values[i][0] * shape_values[j][0],
+                   shape_values[i][1] * shape_values[j][1])
+        how = ("begin" if not m.collide else
+               "shapes" if _close(product[0], m.friction) and _close(product[1], m.restitution)
+               else "pre_solve")
+        out.append(ClassPair(i, j, a, b, m, how, product))
+    return classes, shape_values, out
+
+
+def touching_pairs(scene: Scene) -> list[tuple[str, str, float]]:
+    """The colliding pairs whose initial gap is within ``TOUCHING`` of zero (CONTACTS.md C17),
+    found without measuring every pair: a gap of about zero needs the two bounding boxes at t = 0
+    to touch, so only the pairs whose boxes come within 1e-9 m are measured (a sweep along x),
+    and every body against the ground line. In ``Scene.contact_pairs()`` order."""
+    from crosscheck.scene.contact import GROUND, material_classes
+
+    classes = material_classes(scene)
+    things = {t.name: t for t in (*scene.bodies, *scene.statics)}
+    pos = {name: k for k, name in enumerate(classes.surfaces)}
+    boxes = []
+    for name, t in things.items():
+        if t.shape.kind == "circle":
+            c, r = np.asarray(t.position, float), float(t.shape.radius)
+            lo, hi = c - r, c + r
+        else:
+            v = _world_vertices(t.shape, t.position,
+                                float(np.asarray(t.orientation).reshape(-1)[0]))
+            lo, hi = v.min(axis=0), v.max(axis=0)
+        boxes.append((float(lo[0]) - 1e-9, float(hi[0]) + 1e-9, lo[1] - 1e-9, hi[1] + 1e-9, name))
+    boxes.sort()
+    candidates = []
+    for k, (_, x1, y0, y1, a) in enumerate(boxes):
+        for u0, _, v0, v1, b in boxes[k + 1:]:
+            if u0 > x1:
+                break
+            if v0 <= y1 and y0 <= v1 and classes.touches(a, b):
+                candidates.append((a, b) if pos[a] < pos[b] else (b, a))
+    if scene.ground is not None:
+        candidates += [(name, GROUND) for name in scene.body_names]
+    rank = {False: 0, True: 1}  # body-body before body-static / body-ground
+    candidates.sort(key=lambda q: (rank[q[1] in classes.fixed], q[1] == GROUND, pos[q[0]],
+                                   pos[q[1]]))
+    out = []
+    for a, b in candidates:
+        if classes.value(a, b).collide:
+            gap = initial_gap(scene, a, b, things)
+            if abs(gap) <= TOUCHING:
+                out.append((a, b, gap))
+    return out
 
 
 class PymunkModel:
@@ -242,8 +343,8 @@ class PymunkModel:
             space.add(spring)
             self.springs.append(spring)
         self.shapes: dict[str, Any] = {}  # name -> its one shape (contact scenes only)
-        self.collision_types: dict[str, int] = {}
-        self.pairs: list[tuple[Any, tuple[int, int]]] = []  # (ContactPair, collision types)
+        self.collision_types: dict[str, int] = {}  # name -> its class + 1
+        self.class_pairs: list[ClassPair] = []  # class_program: how each class pair is given
         if scene.effects.contact:
             self._add_contact()
         # Per-step forces: (body, linear drag, angular drag, load force, load torque).
@@ -280,16 +381,19 @@ class PymunkModel:
         self.native, self.native_reason = self._native()
 
     def _add_contact(self) -> None:
-        """Shapes for every body, static and the ground, and one collision handler per pair.
+        """Shapes for every body, static and the ground; one collision type per material class
+        and handlers for the class pairs whose values the shapes' product does not give.
 
         Each shape has mass 0 and density 0, so adding it leaves the body's mass, moment and
         centre of gravity as set (Chipmunk accumulates mass from shapes only when a shape has
-        some; read back in ``settings``). Its own friction and elasticity stay 0: the pair's
-        values come from the handler alone, so a pair the handler missed would be frictionless
-        and dead, never silently right by another rule. Every shape gets its own collision type
-        (its index + 1) and every pair of ``Scene.contact_pairs()`` its own handler: pre_solve sets
-        the arbiter's friction and restitution to the pair's values at every step; a
-        ``collide = false`` pair's begin rejects the contact.
+        some; read back in ``settings``). Chipmunk multiplies the two shapes' friction and
+        elasticity into the arbiter's at every step (cpArbiterUpdate), so a shape carries sqrt
+        of its class's friction and restitution (``class_program``): a class pair whose product
+        is the pair's value to 2 ulp needs nothing more; the others get a pre_solve that sets
+        the arbiter's friction and restitution to the pair's values at every step, and a
+        ``collide = false`` class pair a begin that rejects the contact. A handler per class
+        pair, not per pair of surfaces: a pile of N bodies of one material has a handful
+        (before: N^2 / 2, each a Python call per arbiter and step).
         """
         scene, space = self.scene, self.space
         static = space.static_body
@@ -308,19 +412,22 @@ class PymunkModel:
             verts = [p0 - ext * t, p0 + ext * t, p0 + ext * (t - n), p0 - ext * (t + n)]
             self.shapes[GROUND] = _pm.Poly(static, [(float(x), float(y)) for x, y in verts],
                                            radius=0.0)
-        for i, (name, shape) in enumerate(self.shapes.items()):
-            shape.collision_type = i + 1
-            self.collision_types[name] = i + 1
+        classes, self.shape_values, self.class_pairs = class_program(scene)
+        self.classes = classes
+        for name, shape in self.shapes.items():
+            k = classes.of[name]
+            shape.collision_type = k + 1  # 0 is Chipmunk's default type: keep it unused
+            shape.friction, shape.elasticity = self.shape_values[k]
+            self.collision_types[name] = k + 1
         space.add(*self.shapes.values())
-        for pair in scene.contact_pairs():
-            types = (self.collision_types[pair.a], self.collision_types[pair.b])
-            m = pair.material
-            if m.collide:
+        for q in self.class_pairs:
+            types = (q.i + 1, q.j + 1)
+            if q.how == "pre_solve":
                 space.on_collision(*types, pre_solve=_set_pair_values,
-                                   data=(float(m.friction), float(m.restitution)))
-            else:
+                                   data=(float(q.material.friction),
+                                         float(q.material.restitution)))
+            elif q.how == "begin":
                 space.on_collision(*types, begin=_never)
-            self.pairs.append((pair, types))
 
     @staticmethod
     def _shape(body, shape, position, angle):
@@ -532,8 +639,9 @@ class PymunkModel:
 
 
     def contact_settings(self, problems: list[str]) -> dict[str, Any]:
-        """The contact model read back: space settings, shapes, and every pair's handler with
-        the values it sets (from the handler pymunk holds, not from the scene)."""
+        """The contact model read back: space settings, shapes, and every class pair with how
+        Chipmunk gets its values (from the shapes and handlers pymunk holds, not from the
+        scene): the product of the two classes' shapes' values, or the handler's values."""
         space = self.space
         wanted = float(self.options.get("collision_slop") or CONTACT_SLOP)
         if space.collision_slop != wanted:
@@ -541,48 +649,72 @@ class PymunkModel:
         shapes = []
         for name, shape in self.shapes.items():
             kind = type(shape).__name__
+            k = self.classes.of[name]
             entry = {"name": name, "shape": kind, "collision_type": shape.collision_type,
-                     "mass": shape.mass, "density": shape.density, "radius": shape.radius,
-                     "friction": shape.friction, "elasticity": shape.elasticity,
-                     "static": shape.body is space.static_body}
+                     "class": k, "mass": shape.mass, "density": shape.density,
+                     "radius": shape.radius, "friction": shape.friction,
+                     "elasticity": shape.elasticity, "static": shape.body is space.static_body}
             if kind == "Poly":
                 entry["vertices"] = [[v.x, v.y] for v in shape.get_vertices()]
             if shape.mass != 0.0 or shape.density != 0.0:
                 problems.append(f"shape of {name!r} has mass {shape.mass}, density "
                                 f"{shape.density}: it would change the body's mass properties")
+            if (shape.collision_type, shape.friction, shape.elasticity) != (
+                    k + 1, *self.shape_values[k]):
+                problems.append(f"shape of {name!r}: collision type, friction, elasticity read "
+                                f"back {shape.collision_type}, {shape.friction}, "
+                                f"{shape.elasticity}; class {k} wants {k + 1}, "
+                                f"{self.shape_values[k]}")
             shapes.append(entry)
-        pairs, warnings = [], []
-        for pair, types in self.pairs:
+        # every shape of a class carries the class's values (checked above), so one shape per
+        # class gives the product Chipmunk computes for every pair of a class pair
+        first = {self.classes.of[name]: shape for name, shape in reversed(self.shapes.items())}
+        pairs = []
+        for q in self.class_pairs:
+            types = (q.i + 1, q.j + 1)
             handler = space._handlers.get(types)
-            m = pair.material
-            entry = {"a": pair.a, "b": pair.b, "kind": pair.kind, "source": m.source,
-                     "collision_types": list(types), "collide": m.collide}
-            if handler is None:
-                problems.append(f"no collision handler for the pair {pair.a!r}-{pair.b!r}")
-            elif m.collide:
+            m = q.material
+            entry = {"a": q.a, "b": q.b, "classes": [q.i, q.j],
+                     "class_sizes": [len(self.classes.members[q.i]),
+                                     len(self.classes.members[q.j])],
+                     "source": m.source, "collision_types": list(types), "collide": m.collide}
+            if q.how == "shapes":
+                sa, sb = first[q.i], first[q.j]
+                fr, el = sa.friction * sb.friction, sa.elasticity * sb.elasticity
+                entry.update(handler=None, mechanism="Chipmunk's product of the shapes' values",
+                             friction=m.friction, restitution=m.restitution,
+                             chipmunk_friction=fr, chipmunk_restitution=el)
+                if handler is not None:
+                    problems.append(f"class pair {q.a!r}-{q.b!r}: a handler is registered, "
+                                    "none expected")
+                if not (_close(fr, m.friction) and _close(el, m.restitution)):
+                    problems.append(f"class pair {q.a!r}-{q.b!r}: the shapes' products "
+                                    f"{(fr, el)}, pair values {(m.friction, m.restitution)}")
+            elif handler is None:
+                problems.append(f"no collision handler for the class pair {q.a!r}-{q.b!r}")
+            elif q.how == "pre_solve":
                 values = handler.data.get("pre_solve")
                 entry.update(handler="pre_solve sets arbiter friction and restitution",
                              friction=values[0], restitution=values[1])
                 if handler.pre_solve is not _set_pair_values or values != (
                         float(m.friction), float(m.restitution)):
-                    problems.append(f"pair {pair.a!r}-{pair.b!r}: handler sets {values}, pair "
+                    problems.append(f"pair {q.a!r}-{q.b!r}: handler sets {values}, pair "
                                     f"values are {(m.friction, m.restitution)}")
             else:
                 entry["handler"] = "begin rejects the contact (collide = false)"
                 if handler.begin is not _never:
-                    problems.append(f"pair {pair.a!r}-{pair.b!r} (collide = false) is not "
+                    problems.append(f"pair {q.a!r}-{q.b!r} (collide = false) is not "
                                     "rejected")
-            if m.collide:
-                gap = initial_gap(self.scene, pair.a, pair.b)
-                entry["initial_gap"] = gap
-                if abs(gap) <= TOUCHING:
-                    warnings.append(
-                        f"{pair.a!r} and {pair.b!r} start touching (gap {gap:.3g} m): Chipmunk "
-                        "makes no contact at distance 0 (CONTACTS.md C17), so the two act as "
-                        "apart until something presses them into overlap (a touching cradle "
-                        "gives 0, 0, 1 instead of -1/3, 2/3, 2/3); start them apart or "
-                        "overlapping by 1e-9 m")
             pairs.append(entry)
+        if len(space._handlers) != sum(q.how != "shapes" for q in self.class_pairs):
+            problems.append(f"{len(space._handlers)} collision handlers registered, "
+                            f"{sum(q.how != 'shapes' for q in self.class_pairs)} expected")
+        warnings = [
+            f"{a!r} and {b!r} start touching (gap {gap:.3g} m): Chipmunk makes no contact at "
+            "distance 0 (CONTACTS.md C17), so the two act as apart until something presses "
+            "them into overlap (a touching cradle gives 0, 0, 1 instead of -1/3, 2/3, 2/3); "
+            "start them apart or overlapping by 1e-9 m"
+            for a, b, gap in touching_pairs(self.scene)]
         return {
             "collision_slop": space.collision_slop,
             "collision_bias": space.collision_bias,
@@ -591,11 +723,16 @@ class PymunkModel:
             "iterations_reason": self.iterations_reason,
             "ground": (f"Poly, top edge on the ground line, {GROUND_EXTENT:g} m either side "
                        "and deep" if self.scene.ground is not None else None),
-            "handler": ("one per pair (collision type per shape): pre_solve sets "
-                        "Arbiter.friction and Arbiter.restitution to the pair's values; "
-                        "collide = false: begin sets process_collision = False"),
+            "handler": ("one collision type per material class, its shapes sqrt of the "
+                        "class's friction and restitution (Chipmunk multiplies the two); "
+                        "class pairs whose product is not the pair value within "
+                        f"{PRODUCT_ULPS} ulp: pre_solve sets Arbiter.friction and "
+                        "Arbiter.restitution to the pair's values; collide = false: begin "
+                        "sets process_collision = False"),
+            "handlers": len(space._handlers),
             "shapes": shapes,
             "pairs": pairs,
+            "pairs_listed": "one entry per class pair (a-b: one of its pairs), not per pair",
             "warnings": warnings,
         }
 
@@ -637,12 +774,16 @@ class PymunkEngine(EngineBase):
         for st in scene.statics:
             if st.shape.kind not in _SHAPES:
                 return f"pymunk has no {st.shape.kind} shape (static {st.name!r})"
-        for pair in scene.contact_pairs():
-            m = pair.material
+        from crosscheck.scene.contact import material_classes
+
+        classes = material_classes(scene)  # over class pairs: their number does not grow with N
+        for i, j in classes.class_pairs():
+            m = classes.values[i][j]
             if m.collide and (m.rolling_friction > 0 or m.torsional_friction > 0):
+                a, b = next(classes.pairs_between(i, j))
                 what = "rolling" if m.rolling_friction > 0 else "torsional"
                 value = m.rolling_friction if m.rolling_friction > 0 else m.torsional_friction
-                return (f"Chipmunk has no {what} friction (pair {pair.a!r}-{pair.b!r} has "
+                return (f"Chipmunk has no {what} friction (pair {a!r}-{b!r} has "
                         f"{what}_friction = {value:g} m): its contacts resist sliding only")
         return None
 
