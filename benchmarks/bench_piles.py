@@ -2,7 +2,7 @@
 PyBullet and Pymunk on the same scenes, in one run, with each run's soundness beside its speed.
 
     .venv/bin/python benchmarks/bench_piles.py [--sizes 200 1000 5000] [--repeats 3]
-        [--duration 0.3] [--cap 120] [--warm-cap 900] [--accuracy-cap 300] [--peers-max-n 1000]
+        [--duration 0.3] [--cap 120] [--warm-cap 900] [--accuracy-cap 300] [--peers-max-n N]
         [--only SCENE ...] [--cells LABEL ...] [--out DIR]
 
 Scenes: tests/piles/pile_scenes.py (shared with tests/piles/test_pile_scenes.py): spheres into a
@@ -29,7 +29,7 @@ falls on all of them alike; best and median are reported, with the load average 
 after each scene. Last the driver's accuracy pass (``driver.run(..., cost=None)``, 11 samples)
 gives the soundness figures (``--accuracy-cap``). A repetition longer than ``--cap`` seconds is
 stopped (its worker killed) and the cell reported as capped, with the steps/s it cannot exceed.
-Peers are not run on piles above ``--peers-max-n`` (PEERS_NOT_RUN says why).
+``--peers-max-n`` leaves the peers out of larger piles (default: none left out).
 
 Soundness at the end of the accuracy pass: no failure reported by the driver, every body finite,
 inside the bin (or above the ground for the open scene), and the deepest penetration of any pair
@@ -68,17 +68,12 @@ DT = pile_scenes.DT
 PENETRATION_LOOSEST = 5e-3  # m: r / 10, the committed sphere-pile case's bound for MuJoCo
 INHOUSE_INTEGRATOR = "symplectic_euler"
 DEFAULT_DURATION = 0.3  # s (main: why)
-# Why the peers stop at --peers-max-n: both adapters enumerate Scene.contact_pairs() (every pair
-# of bodies, plus body-static and body-ground) in Python, MuJoCo's into one explicit <pair> each
-# (geoms have contype = conaffinity = 0, so the pair list is its whole contact set) and PyBullet's
-# into its read-back of the pair values; building the model and the accuracy pass's read-back
-# grow as N^2 (measured in piles.md: the workers' warm-up and accuracy-pass seconds at 200 and
-# 1000). The PyBullet (and Pymunk) adapters no longer do: they program their engines from
-# scene.contact.material_classes (docs/engines.md, PyBullet and Pymunk "Contact"; the 1000-sphere
-# plan went from ~160-210 s to 1 ms), so this limit and PEERS_NOT_RUN's reason now hold for
-# MuJoCo only; left as it is until the peers are re-measured together.
-PEERS_NOT_RUN = ("not run: the adapter enumerates every body pair in Python ({pairs} pairs "
-                 "here; MuJoCo's MJCF gets one explicit <pair> each)")
+# --peers-max-n leaves the peers out of larger piles, to save time only. Until 2026-11-27 it
+# had to: the adapters enumerated every body pair in Python (PyBullet's plan took 160-210 s at
+# N = 1000, MuJoCo got one explicit <pair> per body pair and no broad phase); all three now
+# program their engines from scene.contact.material_classes (docs/engines.md, "Contact" of
+# each), so by default every pile runs every engine.
+PEERS_NOT_RUN = "not run: --peers-max-n {limit} leaves the peers out of piles above it"
 
 
 def cells_for(pile, labels: list[str] | None = None) -> list[dict]:
@@ -239,7 +234,7 @@ class Cell:
 
 def run_scene(name: str, build, repeats: int, cap: float, labels=None, *,
               warm_cap: float = 900.0, accuracy_cap: float = 300.0,
-              peers_max_n: int = 1000) -> list[dict]:
+              peers_max_n: int = 10**9) -> list[dict]:
     pile = build()
     specs = cells_for(pile, labels)
     skipped = [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
@@ -247,7 +242,7 @@ def run_scene(name: str, build, repeats: int, cap: float, labels=None, *,
                for c in cells_for(pile) if c not in specs]
     if pile.n > peers_max_n:
         skipped += [{**c, "scene": name, "n": pile.n, "dimension": pile.dimension,
-                     "not_run": PEERS_NOT_RUN.format(pairs=pile.n * (pile.n - 1) // 2)}
+                     "not_run": PEERS_NOT_RUN.format(limit=peers_max_n)}
                     for c in specs if c["engine"] != "inhouse"]
         specs = [c for c in specs if c["engine"] == "inhouse"]
     ctx = mp.get_context("fork")  # the scene is inherited, not pickled (5000 bodies)
@@ -308,7 +303,7 @@ def main(argv=None):
     ap.add_argument("--warm-cap", type=float, default=900.0,
                     help="s for a worker's first step (a first numba compilation takes minutes)")
     ap.add_argument("--accuracy-cap", type=float, default=300.0)
-    ap.add_argument("--peers-max-n", type=int, default=1000,
+    ap.add_argument("--peers-max-n", type=int, default=10**9,
                     help="peers are not run on larger piles (see PEERS_NOT_RUN)")
     ap.add_argument("--cells", nargs="*", help="labels of the cells to run (default: all)")
     ap.add_argument("--out", type=Path, default=OUT)
