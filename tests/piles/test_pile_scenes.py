@@ -102,3 +102,19 @@ def test_mujoco_solver_option_reaches_the_model():
                         (with_mujoco_solver(pile, "cg").scene, "mjSOL_CG")):
         traj = run(MujocoEngine(), scene, "euler", DT, cost=None).trajectory
         assert traj.meta["effective"]["contact"]["solver"] == want
+
+
+def test_mujoco_opens_a_5000_sphere_pile_and_its_arena_grows_linearly():
+    """MuJoCo's automatic arena grows faster than N^1.5 and cannot be allocated at 5000 bodies
+    ("Could not allocate memory" from the compiler, measured on 4.0.0); the adapter sizes it
+    from the body count instead, so the benchmark's largest pile opens and steps."""
+    import mujoco
+
+    from crosscheck.engines.mujoco import MujocoEngine, arena_bytes
+
+    pile = spheres(5000, duration=0.002)
+    model = MujocoEngine().build(pile.scene, "euler", 1e-3)
+    assert model.model.narena == arena_bytes(5000)
+    assert arena_bytes(5000) - arena_bytes(1000) == 5 * (arena_bytes(1000) - arena_bytes(200))
+    mujoco.mj_step(model.model, model.data)
+    assert model.data.warning.number.sum() == 0

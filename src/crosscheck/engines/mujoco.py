@@ -447,6 +447,20 @@ def mujoco_values(pm, dt: float) -> tuple:
     return pair_condim(pm), friction, tuple(pair_solref(pm, dt))
 
 
+# MuJoCo's arena (contacts and constraint arrays) for a contact scene, in bytes: its automatic
+# size grows faster than N^1.5 (134 MB at 200 spheres, 1.8 GB at 1000, and the compiler cannot
+# allocate it at 5000: "Could not allocate memory"), while a settled pile uses 3-25 kB per
+# contact (measured on 4.0.0: 1000 spheres under CG 4.9 MB at 1574 contacts, Newton 37 MB at
+# 1458; 200 spheres / boxes under Newton 5.2 / 3.6 MB). So: a 16 MB floor and 256 kB per body
+# (room for 16 contacts per body at 16 kB each). Untouched arena pages are never resident.
+ARENA_FLOOR = 16 << 20
+ARENA_PER_BODY = 256 << 10
+
+
+def arena_bytes(n_bodies: int) -> int:
+    return ARENA_FLOOR + ARENA_PER_BODY * n_bodies
+
+
 # MuJoCo's contype / conaffinity are 32-bit ints: one bit per material class, up to 31 classes
 # (a scene with more gives every pair that can touch an explicit <pair>, the slow route).
 MAX_CLASS_BITS = 31
@@ -786,12 +800,13 @@ class MujocoModel:
             bodies.append(f'<body name="b{i}"{buoy}>{joints}{inertial}{body_geoms.get(i, "")}'
                           f'{"".join(sites[i])}</body>')
         tendon_xml = f"<tendon>{''.join(tendons)}</tendon>" if tendons else ""
+        size = (f'<size memory="{arena_bytes(len(scene.bodies))}"/>' if self.contact else "")
         # inertiafromgeom false and no bounds: the inertial is used exactly as written.
         return (
             '<mujoco model="crosscheck">'
             '<compiler angle="radian" inertiafromgeom="false" boundmass="0" boundinertia="0" '
             'balanceinertia="false" alignfree="false"/>'
-            f'{asset}<worldbody>{world_geoms}{"".join(world_sites)}{"".join(bodies)}</worldbody>'
+            f'{size}{asset}<worldbody>{world_geoms}{"".join(world_sites)}{"".join(bodies)}</worldbody>'
             f"{contact}{tendon_xml}</mujoco>"
         )
 
@@ -1200,6 +1215,7 @@ class MujocoModel:
             "refsafe": not (int(opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)),
             "inelastic_timeconst_in_force": max(timeconst, 2.0 * float(opt.timestep)),
             "npair": int(m.npair),
+            "arena_bytes": int(m.narena),
             "material_classes": [list(c) if len(c) <= 8 else [*c[:8], f"... {len(c)} in all"]
                                  for c in classes.members],
             "geoms": geoms,
