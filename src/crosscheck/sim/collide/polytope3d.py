@@ -174,9 +174,99 @@ def _edge_query(edge_verts, edge_faces, ea0, nea, eb0, neb, na, nb, va, vb, eb, 
     return best, best_i, best_j, bax, bay, baz
 
 
+@njit(**INLINE)
+def _dot_columns(wrot, ca, i, cb):
+    """(a_i . b_0, a_i . b_1, a_i . b_2): column i of ca's rotation against cb's columns."""
+    x, y, z = wrot[ca, 0, i], wrot[ca, 1, i], wrot[ca, 2, i]
+    return (x * wrot[cb, 0, 0] + y * wrot[cb, 1, 0] + z * wrot[cb, 2, 0],
+            x * wrot[cb, 0, 1] + y * wrot[cb, 1, 1] + z * wrot[cb, 2, 1],
+            x * wrot[cb, 0, 2] + y * wrot[cb, 1, 2] + z * wrot[cb, 2, 2])
+
+
+@njit(**INLINE)
+def _cross_axis(edge, sep, t1, t2, r1j, r2j, ha1, ha2, hb1, hb2, ri1, ri2):
+    """Separation along a_i x b_j (in A's frame (0, -r2j, r1j) in slots (i, i1, i2)), with
+    (i1, i2) and (j1, j2) the cyclic successors of i and j: t1, t2 = t_i1, t_i2; r1j, r2j =
+    r[i1, j], r[i2, j]; hb1, hb2 = hb[j1], hb[j2]; ri1, ri2 = r[i, j1], r[i, j2]. Updates the
+    edge bound, and the separation when the axis is well defined."""
+    ln = np.sqrt(r1j * r1j + r2j * r2j)  # |a_i x b_j| without 1 - r_ij^2's cancellation
+    if ln <= 0.5 * PARALLEL:
+        return edge, sep
+    s = (abs(t2 * r1j - t1 * r2j) - (ha1 * abs(r2j) + ha2 * abs(r1j))
+         - (hb1 * abs(ri2) + hb2 * abs(ri1))) / ln
+    edge = max(edge, s)
+    if ln > 2.0 * PARALLEL:
+        sep = max(sep, s)
+    return edge, sep
+
+
+@njit(**INLINE)
+def box_box_bounds(wpos, wrot, size, ca, cb):
+    """Two boxes' 15 separating axes (Gottschalk's OBB test, Ericson 4.4.1) in closed form:
+    (largest separation over the 6 face axes and the 9 edge-cross axes, largest separation over
+    the edge-cross axes alone, tolerance of both). A separation is the gap between the boxes'
+    projections on the axis (negative when they overlap on it).
+
+    What it is for (detect.py): the exact routine's face separations are these face
+    axes' and its edge separation is, pair by pair, the separation along that pair's cross axis
+    (the pair that realises an axis's support spans a face of the Minkowski difference, so the
+    Gauss-map pruning keeps it), so (up to round-off, the tolerance) a separation here above the
+    margin means the routine finds nothing, and the routine's edge separation is at most the
+    edge bound here. Cross axes of near-parallel edges (|a_i x b_j| below PARALLEL) are left
+    out, as the routine leaves them out (their direction is round-off); those between PARALLEL
+    / 2 and 2 PARALLEL bound the edge separation but do not separate (the routine may or may
+    not have taken them)."""
+    ha0, ha1, ha2 = size[ca, 0], size[ca, 1], size[ca, 2]
+    hb0, hb1, hb2 = size[cb, 0], size[cb, 1], size[cb, 2]
+    tx = wpos[cb, 0] - wpos[ca, 0]
+    ty = wpos[cb, 1] - wpos[ca, 1]
+    tz = wpos[cb, 2] - wpos[ca, 2]
+    # scalars, no scratch arrays (an allocation per pair costs as much as the test):
+    # rij = a_i . b_j (the axes are wrot's columns), t0..t2 = t in A's frame
+    r00, r01, r02 = _dot_columns(wrot, ca, 0, cb)
+    r10, r11, r12 = _dot_columns(wrot, ca, 1, cb)
+    r20, r21, r22 = _dot_columns(wrot, ca, 2, cb)
+    t0 = wrot[ca, 0, 0] * tx + wrot[ca, 1, 0] * ty + wrot[ca, 2, 0] * tz
+    t1 = wrot[ca, 0, 1] * tx + wrot[ca, 1, 1] * ty + wrot[ca, 2, 1] * tz
+    t2 = wrot[ca, 0, 2] * tx + wrot[ca, 1, 2] * ty + wrot[ca, 2, 2] * tz
+    # A's face axes, then B's
+    sep = abs(t0) - ha0 - (hb0 * abs(r00) + hb1 * abs(r01) + hb2 * abs(r02))
+    sep = max(sep, abs(t1) - ha1 - (hb0 * abs(r10) + hb1 * abs(r11) + hb2 * abs(r12)))
+    sep = max(sep, abs(t2) - ha2 - (hb0 * abs(r20) + hb1 * abs(r21) + hb2 * abs(r22)))
+    sep = max(sep, abs(t0 * r00 + t1 * r10 + t2 * r20) - hb0
+              - (ha0 * abs(r00) + ha1 * abs(r10) + ha2 * abs(r20)))
+    sep = max(sep, abs(t0 * r01 + t1 * r11 + t2 * r21) - hb1
+              - (ha0 * abs(r01) + ha1 * abs(r11) + ha2 * abs(r21)))
+    sep = max(sep, abs(t0 * r02 + t1 * r12 + t2 * r22) - hb2
+              - (ha0 * abs(r02) + ha1 * abs(r12) + ha2 * abs(r22)))
+    # a_i x b_j, (i, i1, i2) and (j, j1, j2) cyclic
+    edge = -np.inf
+    edge, sep = _cross_axis(edge, sep, t1, t2, r10, r20, ha1, ha2, hb1, hb2, r01, r02)  # a0 b0
+    edge, sep = _cross_axis(edge, sep, t1, t2, r11, r21, ha1, ha2, hb2, hb0, r02, r00)  # a0 b1
+    edge, sep = _cross_axis(edge, sep, t1, t2, r12, r22, ha1, ha2, hb0, hb1, r00, r01)  # a0 b2
+    edge, sep = _cross_axis(edge, sep, t2, t0, r20, r00, ha2, ha0, hb1, hb2, r11, r12)  # a1 b0
+    edge, sep = _cross_axis(edge, sep, t2, t0, r21, r01, ha2, ha0, hb2, hb0, r12, r10)  # a1 b1
+    edge, sep = _cross_axis(edge, sep, t2, t0, r22, r02, ha2, ha0, hb0, hb1, r10, r11)  # a1 b2
+    edge, sep = _cross_axis(edge, sep, t0, t1, r00, r10, ha0, ha1, hb1, hb2, r21, r22)  # a2 b0
+    edge, sep = _cross_axis(edge, sep, t0, t1, r01, r11, ha0, ha1, hb2, hb0, r22, r20)  # a2 b1
+    edge, sep = _cross_axis(edge, sep, t0, t1, r02, r12, ha0, ha1, hb0, hb1, r20, r21)  # a2 b2
+    # The two computations round differently: the routine's plane offsets carry the world
+    # positions (1e-13 m at 1e3 m from the origin), a near-parallel cross axis divides by its
+    # length. 1e-9 m of the scale, far below any margin, costs nothing in early-outs.
+    tol = (1e-9 * (1.0 + abs(tx) + abs(ty) + abs(tz) + ha0 + ha1 + ha2 + hb0 + hb1 + hb2)
+           + 1e-12 * (abs(wpos[ca, 0]) + abs(wpos[ca, 1]) + abs(wpos[ca, 2])
+                      + abs(wpos[cb, 0]) + abs(wpos[cb, 1]) + abs(wpos[cb, 2])))
+    return sep, edge, tol
+
+
 @njit(**JIT)
-def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch):
-    """Manifold of polytope colliders A and B (boxes or hulls); returns the point count."""
+def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, edge_bound):
+    """Manifold of polytope colliders A and B (boxes or hulls); returns the point count.
+
+    ``edge_bound``: an upper bound of the edge separation known beforehand (np.inf when none;
+    two boxes: box_box_bounds' edge bound plus its tolerance): when it shows that the edge query
+    cannot change the outcome (no edge axis separates beyond the margin, none wins over the
+    faces) the query, the routine's largest part, is skipped. The result is the same."""
     vertices, face_normal, face_offset = geom.vertices, geom.face_normal, geom.face_offset
     pa, pb = geom.polytope[ca], geom.polytope[cb]
     va, vb, na, nb = scratch.va, scratch.vb, scratch.na, scratch.nb
@@ -198,20 +288,36 @@ def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch):
     oy = wpos[ca, 1] + wrot[ca, 1, 0] * cx + wrot[ca, 1, 1] * cy + wrot[ca, 1, 2] * cz
     oz = wpos[ca, 2] + wrot[ca, 2, 0] * cx + wrot[ca, 2, 1] * cy + wrot[ca, 2, 2] * cz
     ea0, eb0 = geom.poly_edge_start[pa], geom.poly_edge_start[pb]
+    face = max(sa, sb)
+    if (edge_bound <= margin
+            and edge_bound <= face + EDGE_BIAS_ABS + EDGE_BIAS_REL * abs(face)):
+        # the query's se <= edge_bound: neither the return below nor the edge contact can
+        # happen, so its outcome is known
+        return _face_pair(geom.face_verts, geom.face_vert_start, geom.face_vert_count,
+                          geom.poly_face_start[pa], geom.poly_face_start[pb], na, nb, n_fa, n_fb,
+                          va, vb, sa, sb, fa, fb, margin, man, scratch)
     se, ei, ej, ex, ey, ez = _edge_query(geom.edge_verts, geom.edge_faces, ea0,
                                          geom.poly_edge_count[pa], eb0, geom.poly_edge_count[pb],
                                          na, nb, va, vb, scratch.eb, ox, oy, oz)
     if se > margin:
         return 0
-    face = max(sa, sb)
     if ei >= 0 and se > face + EDGE_BIAS_ABS + EDGE_BIAS_REL * abs(face):
         return _edge_contact(geom.edge_verts, ea0 + ei, eb0 + ej, ei, ej, ex, ey, ez, va, vb, man)
-    face_verts, fv_start, fv_count = geom.face_verts, geom.face_vert_start, geom.face_vert_count
+    return _face_pair(geom.face_verts, geom.face_vert_start, geom.face_vert_count,
+                      geom.poly_face_start[pa], geom.poly_face_start[pb], na, nb, n_fa, n_fb, va,
+                      vb, sa, sb, fa, fb, margin, man, scratch)
+
+
+@njit(**INLINE)
+def _face_pair(face_verts, fv_start, fv_count, fa0, fb0, na, nb, n_fa, n_fb, va, vb, sa, sb, fa,
+               fb, margin, man, scratch):
+    """The face contact: B's face is the reference when it separates clearly more (arrays, not
+    the geometry: a NamedTuple handed to inlined code is copied, a reference count per field)."""
     if sb > sa + FACE_BIAS_ABS + FACE_BIAS_REL * abs(sa):
-        return _face_contact(nb, fb, geom.poly_face_start[pb], na, n_fa, geom.poly_face_start[pa],
-                             vb, va, face_verts, fv_start, fv_count, True, margin, man, scratch)
-    return _face_contact(na, fa, geom.poly_face_start[pa], nb, n_fb, geom.poly_face_start[pb],
-                         va, vb, face_verts, fv_start, fv_count, False, margin, man, scratch)
+        return _face_contact(nb, fb, fb0, na, n_fa, fa0, vb, va, face_verts, fv_start, fv_count,
+                             True, margin, man, scratch)
+    return _face_contact(na, fa, fa0, nb, n_fb, fb0, va, vb, face_verts, fv_start, fv_count,
+                         False, margin, man, scratch)
 
 
 @njit(**INLINE)
