@@ -56,6 +56,7 @@ from crosscheck.sim.collide.narrow3d import (
 from crosscheck.sim.collide.polytope3d import (
     box_box_bounds,
     new_polytope_scratch,
+    polytope_pair,
     polytope_polytope,
 )
 from crosscheck.sim.collide.pose import (
@@ -243,6 +244,13 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
     n_keys = c + n_planes
     needed = 0
     kind, size = geom.kind, geom.size
+    vertices, face_normal, face_offset = geom.vertices, geom.face_normal, geom.face_offset
+    polytope, poly_centroid = geom.polytope, geom.poly_centroid
+    poly_vert_start, poly_vert_count = geom.poly_vert_start, geom.poly_vert_count
+    poly_face_start, poly_face_count = geom.poly_face_start, geom.poly_face_count
+    poly_edge_start, poly_edge_count = geom.poly_edge_start, geom.poly_edge_count
+    edge_verts, edge_faces = geom.edge_verts, geom.edge_faces
+    face_verts, fv_start, fv_count = geom.face_verts, geom.face_vert_start, geom.face_vert_count
     for p in range(n_pairs):
         first, second = row_order(body, pairs[p, 0], pairs[p, 1])
         ca, cb = first, second
@@ -253,14 +261,22 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
             ka, kb = kb, ka
         n = closed_form_pair3d(ka, kb, size, wpos, wrot, ca, cb, margin, man)
         if n < 0:
-            if ka == BOX and kb == BOX:  # box_box, written out (it takes the geometry)
-                sep, edge, tol = box_box_bounds(wpos, wrot, size, ca, cb)
+            if (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
+                # box_box / polytope_polytope written out, on the arrays taken above
                 n = 0
-                if sep <= margin + tol:
-                    n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch,
-                                          edge + tol)
-            elif (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
-                n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, np.inf)
+                edge_bound = np.inf
+                apart = False
+                if ka == BOX and kb == BOX:
+                    sep, edge, tol = box_box_bounds(wpos, wrot, size, ca, cb)
+                    apart = sep > margin + tol
+                    edge_bound = edge + tol
+                if not apart:
+                    n = polytope_pair(vertices, face_normal, face_offset, polytope,
+                                      poly_vert_start, poly_vert_count, poly_face_start,
+                                      poly_face_count, poly_edge_start, poly_edge_count,
+                                      poly_centroid, edge_verts, edge_faces, face_verts,
+                                      fv_start, fv_count, wpos, wrot, ca, cb, margin, man,
+                                      scratch, edge_bound)
             else:
                 n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
         if swapped and n > 0:

@@ -28,7 +28,7 @@ from numba import njit
 
 from crosscheck.sim._jit import INLINE, JIT
 from crosscheck.sim.collide.clip3d import clip_polygon
-from crosscheck.sim.collide.manifold import MAX_CANDIDATES, put_point, reduce_to_four, set_normal
+from crosscheck.sim.collide.manifold import MAX_CANDIDATES, MAX_POINTS, reduce_to_four
 from crosscheck.sim.collide.narrow3d import segment_segment
 
 # An edge axis is taken over a face axis when it separates by more than this (absolute m, plus a
@@ -266,62 +266,88 @@ def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, edge_bound
     ``edge_bound``: an upper bound of the edge separation known beforehand (np.inf when none;
     two boxes: box_box_bounds' edge bound plus its tolerance): when it shows that the edge query
     cannot change the outcome (no edge axis separates beyond the margin, none wins over the
-    faces) the query, the routine's largest part, is skipped. The result is the same."""
-    vertices, face_normal, face_offset = geom.vertices, geom.face_normal, geom.face_offset
-    pa, pb = geom.polytope[ca], geom.polytope[cb]
-    va, vb, na, nb = scratch.va, scratch.vb, scratch.na, scratch.nb
-    n_va, n_vb = geom.poly_vert_count[pa], geom.poly_vert_count[pb]
-    n_fa, n_fb = geom.poly_face_count[pa], geom.poly_face_count[pb]
-    _world_vertices(vertices, geom.poly_vert_start[pa], n_va, wpos, wrot, ca, va)
-    _world_vertices(vertices, geom.poly_vert_start[pb], n_vb, wpos, wrot, cb, vb)
-    _world_planes(face_normal, face_offset, geom.poly_face_start[pa], n_fa, wpos, wrot, ca, na)
-    _world_planes(face_normal, face_offset, geom.poly_face_start[pb], n_fb, wpos, wrot, cb, nb)
+    faces) the query, the routine's largest part, is skipped. The result is the same.
+    (:func:`polytope_pair` with the geometry's and the scratch's arrays: detect.py's loop calls
+    that inlined.)"""
+    return polytope_pair(geom.vertices, geom.face_normal, geom.face_offset, geom.polytope,
+                         geom.poly_vert_start, geom.poly_vert_count, geom.poly_face_start,
+                         geom.poly_face_count, geom.poly_edge_start, geom.poly_edge_count,
+                         geom.poly_centroid, geom.edge_verts, geom.edge_faces, geom.face_verts,
+                         geom.face_vert_start, geom.face_vert_count, wpos, wrot, ca, cb, margin,
+                         man, scratch, edge_bound)
+
+
+# polytope_pair takes the geometry's arrays, not the Geometry: inlined into detect.py's loop, a
+# NamedTuple handed to inlined code is copied with an atomic reference count per field (the
+# Geometry has about 45), and every field read costs another. The small Manifold and scratch
+# are read once per call into local names. (At most 30 arguments: CPython passes a longer call
+# as *args, which numba's inliner refuses.)
+@njit(**INLINE)
+def polytope_pair(vertices, face_normal, face_offset, polytope, poly_vert_start, poly_vert_count,
+                  poly_face_start, poly_face_count, poly_edge_start, poly_edge_count,
+                  poly_centroid, edge_verts, edge_faces, face_verts, fv_start, fv_count, wpos,
+                  wrot, ca, cb, margin, man, scratch, edge_bound):
+    """polytope_polytope on the geometry's arrays."""
+    m_normal, m_point, m_depth, m_feature = man.normal, man.point, man.depth, man.feature
+    va, vb, na, nb, eb = scratch.va, scratch.vb, scratch.na, scratch.nb, scratch.eb
+    clip_in, id_in, clip_out = scratch.clip_in, scratch.id_in, scratch.clip_out
+    id_out, ref = scratch.id_out, scratch.ref
+    pa, pb = polytope[ca], polytope[cb]
+    n_va, n_vb = poly_vert_count[pa], poly_vert_count[pb]
+    n_fa, n_fb = poly_face_count[pa], poly_face_count[pb]
+    _world_vertices(vertices, poly_vert_start[pa], n_va, wpos, wrot, ca, va)
+    _world_vertices(vertices, poly_vert_start[pb], n_vb, wpos, wrot, cb, vb)
+    _world_planes(face_normal, face_offset, poly_face_start[pa], n_fa, wpos, wrot, ca, na)
+    _world_planes(face_normal, face_offset, poly_face_start[pb], n_fb, wpos, wrot, cb, nb)
     sa, fa = _face_query(na, n_fa, vb, n_vb)
     if sa > margin:
         return 0
     sb, fb = _face_query(nb, n_fb, va, n_va)
     if sb > margin:
         return 0
-    # A's interior point in world, to orient each edge axis away from A
-    cx, cy, cz = geom.poly_centroid[pa, 0], geom.poly_centroid[pa, 1], geom.poly_centroid[pa, 2]
-    ox = wpos[ca, 0] + wrot[ca, 0, 0] * cx + wrot[ca, 0, 1] * cy + wrot[ca, 0, 2] * cz
-    oy = wpos[ca, 1] + wrot[ca, 1, 0] * cx + wrot[ca, 1, 1] * cy + wrot[ca, 1, 2] * cz
-    oz = wpos[ca, 2] + wrot[ca, 2, 0] * cx + wrot[ca, 2, 1] * cy + wrot[ca, 2, 2] * cz
-    ea0, eb0 = geom.poly_edge_start[pa], geom.poly_edge_start[pb]
+    fa0, fb0 = poly_face_start[pa], poly_face_start[pb]
     face = max(sa, sb)
-    if (edge_bound <= margin
+    if not (edge_bound <= margin
             and edge_bound <= face + EDGE_BIAS_ABS + EDGE_BIAS_REL * abs(face)):
-        # the query's se <= edge_bound: neither the return below nor the edge contact can
-        # happen, so its outcome is known
-        return _face_pair(geom.face_verts, geom.face_vert_start, geom.face_vert_count,
-                          geom.poly_face_start[pa], geom.poly_face_start[pb], na, nb, n_fa, n_fb,
-                          va, vb, sa, sb, fa, fb, margin, man, scratch)
-    se, ei, ej, ex, ey, ez = _edge_query(geom.edge_verts, geom.edge_faces, ea0,
-                                         geom.poly_edge_count[pa], eb0, geom.poly_edge_count[pb],
-                                         na, nb, va, vb, scratch.eb, ox, oy, oz)
-    if se > margin:
-        return 0
-    if ei >= 0 and se > face + EDGE_BIAS_ABS + EDGE_BIAS_REL * abs(face):
-        return _edge_contact(geom.edge_verts, ea0 + ei, eb0 + ej, ei, ej, ex, ey, ez, va, vb, man)
-    return _face_pair(geom.face_verts, geom.face_vert_start, geom.face_vert_count,
-                      geom.poly_face_start[pa], geom.poly_face_start[pb], na, nb, n_fa, n_fb, va,
-                      vb, sa, sb, fa, fb, margin, man, scratch)
-
-
-@njit(**INLINE)
-def _face_pair(face_verts, fv_start, fv_count, fa0, fb0, na, nb, n_fa, n_fb, va, vb, sa, sb, fa,
-               fb, margin, man, scratch):
-    """The face contact: B's face is the reference when it separates clearly more (arrays, not
-    the geometry: a NamedTuple handed to inlined code is copied, a reference count per field)."""
+        # (otherwise the query's se <= edge_bound: neither the return nor the edge contact
+        # below can happen, its outcome is known and it is skipped)
+        # A's interior point in world, to orient each edge axis away from A
+        cx, cy, cz = poly_centroid[pa, 0], poly_centroid[pa, 1], poly_centroid[pa, 2]
+        ox = wpos[ca, 0] + wrot[ca, 0, 0] * cx + wrot[ca, 0, 1] * cy + wrot[ca, 0, 2] * cz
+        oy = wpos[ca, 1] + wrot[ca, 1, 0] * cx + wrot[ca, 1, 1] * cy + wrot[ca, 1, 2] * cz
+        oz = wpos[ca, 2] + wrot[ca, 2, 0] * cx + wrot[ca, 2, 1] * cy + wrot[ca, 2, 2] * cz
+        ea0, eb0 = poly_edge_start[pa], poly_edge_start[pb]
+        se, ei, ej, ex, ey, ez = _edge_query(edge_verts, edge_faces, ea0, poly_edge_count[pa],
+                                             eb0, poly_edge_count[pb], na, nb, va, vb, eb, ox,
+                                             oy, oz)
+        if se > margin:
+            return 0
+        if ei >= 0 and se > face + EDGE_BIAS_ABS + EDGE_BIAS_REL * abs(face):
+            return _edge_contact(edge_verts, ea0 + ei, eb0 + ej, ei, ej, ex, ey, ez, va, vb,
+                                 m_normal, m_point, m_depth, m_feature)
+    # the face contact: B's face is the reference when it separates clearly more
     if sb > sa + FACE_BIAS_ABS + FACE_BIAS_REL * abs(sa):
         return _face_contact(nb, fb, fb0, na, n_fa, fa0, vb, va, face_verts, fv_start, fv_count,
-                             True, margin, man, scratch)
+                             True, margin, man, m_normal, m_point, m_depth, m_feature, clip_in,
+                             id_in, clip_out, id_out, ref)
     return _face_contact(na, fa, fa0, nb, n_fb, fb0, va, vb, face_verts, fv_start, fv_count,
-                         False, margin, man, scratch)
+                         False, margin, man, m_normal, m_point, m_depth, m_feature, clip_in,
+                         id_in, clip_out, id_out, ref)
 
 
 @njit(**INLINE)
-def _edge_contact(edge_verts, ea, eb, ei, ej, nx, ny, nz, va, vb, man):
+def _put(m_point, m_depth, m_feature, k, px, py, pz, depth, feature):
+    """manifold.put_point on the Manifold's arrays."""
+    m_point[k, 0] = px
+    m_point[k, 1] = py
+    m_point[k, 2] = pz
+    m_depth[k] = depth
+    m_feature[k] = feature
+
+
+@njit(**INLINE)
+def _edge_contact(edge_verts, ea, eb, ei, ej, nx, ny, nz, va, vb, m_normal, m_point, m_depth,
+                  m_feature):
     """One point midway between the closest points of edge ea of A and edge eb of B (global
     indices; ei, ej local, for the feature id)."""
     a0, a1 = edge_verts[ea, 0], edge_verts[ea, 1]
@@ -329,16 +355,17 @@ def _edge_contact(edge_verts, ea, eb, ei, ej, nx, ny, nz, va, vb, man):
     px, py, pz, qx, qy, qz = segment_segment(
         va[a0, 0], va[a0, 1], va[a0, 2], va[a1, 0], va[a1, 1], va[a1, 2],
         vb[b0, 0], vb[b0, 1], vb[b0, 2], vb[b1, 0], vb[b1, 1], vb[b1, 2])
-    set_normal(man, nx, ny, nz)
+    m_normal[0], m_normal[1], m_normal[2] = nx, ny, nz
     depth = -(nx * (qx - px) + ny * (qy - py) + nz * (qz - pz))
-    put_point(man, 0, 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz), depth,
-              (1 << 31) | ((ei & 0x7FFF) << 16) | (ej & 0xFFFF))
+    _put(m_point, m_depth, m_feature, 0, 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz), depth,
+         (1 << 31) | ((ei & 0x7FFF) << 16) | (ej & 0xFFFF))
     return 1
 
 
 @njit(**INLINE)
 def _face_contact(nr, fr, fr0, ni, n_fi, fi0, vr, vi, face_verts, fv_start, fv_count, flipped,
-                  margin, man, scratch):
+                  margin, man, m_normal, m_point, m_depth, m_feature, clip_in, id_in, clip_out,
+                  id_out, ref):
     """Clip the incident face (of the polytope with planes ni, faces fi0.., vertices vi) against
     reference face fr (planes nr, faces fr0.., vertices vr). ``flipped``: the reference polytope
     is B, so the normal from A to B is minus the reference normal."""
@@ -355,32 +382,32 @@ def _face_contact(nr, fr, fr0, ni, n_fi, fi0, vr, vi, face_verts, fv_start, fv_c
     gr = fr0 + fr
     s0 = fv_start[gi]
     n_poly = fv_count[gi]
-    clip_in, id_in = scratch.clip_in, scratch.id_in
     for k in range(n_poly):
         v = face_verts[s0 + k]
         for r in range(3):
             clip_in[k, r] = vi[v, r]
         id_in[k] = k & 0x7F
-    ref = scratch.ref
     r0 = fv_start[gr]
     m = fv_count[gr]
     for k in range(m):
         v = face_verts[r0 + k]
         for r in range(3):
             ref[k, r] = vr[v, r]
-    n_poly = clip_polygon(ref, m, nx, ny, nz, clip_in, id_in, n_poly, scratch.clip_out,
-                          scratch.id_out)
+    n_poly = clip_polygon(ref, m, nx, ny, nz, clip_in, id_in, n_poly, clip_out, id_out)
     if flipped:
-        set_normal(man, -nx, -ny, -nz)
+        m_normal[0], m_normal[1], m_normal[2] = -nx, -ny, -nz
     else:
-        set_normal(man, nx, ny, nz)
+        m_normal[0], m_normal[1], m_normal[2] = nx, ny, nz
     head = ((1 << 24) if flipped else 0) | ((fr & 0xFF) << 16) | ((fi & 0xFF) << 8)
     count = 0
     for k in range(n_poly):
         gap = nx * clip_in[k, 0] + ny * clip_in[k, 1] + nz * clip_in[k, 2] - off
         if gap > margin or count >= MAX_CANDIDATES:
             continue
-        put_point(man, count, clip_in[k, 0] - 0.5 * gap * nx, clip_in[k, 1] - 0.5 * gap * ny,
-                  clip_in[k, 2] - 0.5 * gap * nz, -gap, head | (id_in[k] & 0xFF))
+        _put(m_point, m_depth, m_feature, count, clip_in[k, 0] - 0.5 * gap * nx,
+             clip_in[k, 1] - 0.5 * gap * ny, clip_in[k, 2] - 0.5 * gap * nz, -gap,
+             head | (id_in[k] & 0xFF))
         count += 1
+    if count <= MAX_POINTS:  # (the reduction's own first test, without its call)
+        return count
     return reduce_to_four(man, count)
