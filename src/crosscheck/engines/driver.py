@@ -79,11 +79,11 @@ class CostPlan:
     min_seconds: float = 0.2
     max_repeats: int = 50
     budget_seconds: float = 15.0
-    # The runner spreads a rigid cell's cost pass over this many tasks, each timing this plan in
-    # whichever worker process is free later in the run, and pools them (merge_costs): a
-    # process's own timing offset (code alignment, caches) and the machine's load at the time
-    # are then sampled inside the run instead of only between runs. The driver itself times
-    # one process.
+    # The runner spreads a rigid cell's cost pass over this many tasks, each timing this plan
+    # later in the run in a process of its own (the local backend's cost rounds), and pools
+    # them (merge_costs): a process's own timing offset (code and array placement) and the
+    # machine's load at the time are then sampled inside the run instead of only between
+    # runs. The driver itself times one process.
     processes: int = 3
     # The spread is the half-width of a prediction interval with this coverage for the log
     # ratio of the cell's figure in this run and in another run on the same machine

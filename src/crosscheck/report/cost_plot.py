@@ -69,8 +69,8 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
     ax.set_yscale("log")
     draw_limits(ax, limits(cells, metric))
     ax.margins(x=0.15, y=0.2)
-    ax.set_xlabel("cost: wall s per simulated s (marker: fastest repetition; bar: where a rerun"
-                  " lands, the cost spread)", fontsize=8)
+    ax.set_xlabel("cost: wall s per simulated s (marker: fastest repetition, geometric mean of"
+                  " the passes; bar: where a rerun lands, the cost spread)", fontsize=8)
     ax.set_ylabel(f"{metric}" + (f" ({unit})" if unit else " (1)"), fontsize=8)
     ax.set_title(f"{case}: accuracy against cost (lower left is better)", fontsize=9)
     ax.tick_params(labelsize=7)

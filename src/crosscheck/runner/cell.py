@@ -213,8 +213,10 @@ def _execute_cost(task: dict[str, Any]) -> dict[str, Any]:
     integrator, dt = task["integrator"], float(task["dt"])
     cost = task.get("cost", True)
     plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan()
+    # No spread here: pool_costs computes the cell's from all its passes (and a fresh worker
+    # that only times is spared importing scipy for it).
     result["cost_detail"] = measure_cost(lambda: engine.open(scene, integrator, dt),
-                                         int(task["steps"]), dt, plan).to_dict(plan)
+                                         int(task["steps"]), dt, plan).to_dict(plan, spread=False)
     result["pid"] = os.getpid()
     if isinstance(cost, dict):
         result["cost_plan"] = cost  # the spread's model parameters, for pool_costs
