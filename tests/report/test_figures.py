@@ -116,8 +116,10 @@ def test_cost_figure_marks_the_front_and_the_spread():
     cells = [series_cell("inhouse", "rk4", cost=1e-4, error=1e-6),
              series_cell("inhouse", "euler", cost=5e-5, error=1e-2, spread=0.0),
              series_cell("mujoco", "rk4", cost=3e-4, error=1e-5)]
-    assert cost_plot.spread_bar(cells[0]) == pytest.approx((1.1e-4 * 0.95, 1.1e-4 * 1.05))
-    assert cost_plot.spread_bar(cells[1]) is None  # one repetition's worth: no bar
+    # the bar is the cost times exp(-+spread): where a rerun's cost lands (docs/metrics.md)
+    assert cost_plot.spread_bar(cells[0]) == pytest.approx((1e-4 * math.exp(-0.1),
+                                                            1e-4 * math.exp(0.1)))
+    assert cost_plot.spread_bar(cells[1]) is None  # no spread: no bar
     fig = cost_plot.cost_figure("c", cells)
     assert fig is not None
     assert cost_plot.cost_figure("c", cells[:1]) is None  # nothing to compare

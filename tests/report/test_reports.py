@@ -136,7 +136,7 @@ def test_html_is_self_contained_and_embeds_its_plots(run_dir):
     # Nothing loaded from elsewhere: no external scripts, styles or images (links inside the
     # page only; a fluid run would add relative links to files in the folder).
     assert not re.search(r"""(src|href)=["'](?!data:|#)""", html)
-    assert "cost (s/s, min +spread)" in html and "alpha" in html and "beta" in html
+    assert "cost (s/s, min ±spread)" in html and "alpha" in html and "beta" in html
 
 
 def test_summary_lists_failures_before_passes_and_regressions_first(run_dir):

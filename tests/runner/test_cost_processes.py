@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -40,13 +41,21 @@ def test_each_cell_pools_the_cost_of_the_processes_it_asked_for(tmp_path, proces
         detail = cell["cost_detail"]
         assert detail["processes"] == processes
         assert detail["repeats"] == len(detail["wall_samples"]) >= 3 * processes
-        assert cell["cost"] == pytest.approx(min(detail["wall_samples"]) / 0.2)
-        assert cell["cost_spread"] == detail["spread"]
+        # cost: the geometric mean over the passes of each pass's fastest repetition
+        minima = detail.get("process_minima") or [min(detail["wall_samples"])]
+        assert cell["cost"] == pytest.approx(math.prod(minima) ** (1 / len(minima)) / 0.2)
+        assert cell["cost_spread"] == detail["spread"] > 0
+        assert cell["cost_median_spread"] == detail["spread_median"] > 0
         if processes > 1:
             assert len(detail["process_medians"]) == processes
-            assert detail["spread"] >= detail["between_processes"]
+            assert sum(detail["process_repeats"]) == detail["repeats"]
+            # each pass in a process of its own (the local backend's cost rounds)
+            assert len(set(detail["process_pids"])) == processes
+            assert detail["spread_model"]["processes"] == processes
     journal = [json.loads(x) for x in (out / "cells.jsonl").read_text().splitlines()]
     assert sum(r.get("kind") == "cost" for r in journal) == 2 * (processes - 1)
+    # a worker is started afresh once per cost round at most (two workers)
+    assert processes - 1 <= doc["resources"]["workers_started_for_cost"] <= 2 * (processes - 1)
 
 
 def test_cost_processes_must_be_positive(tmp_path, capsys):

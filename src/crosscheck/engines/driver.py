@@ -72,17 +72,34 @@ class CostPlan:
     """How the cost pass repeats: at least ``min_repeats`` timed runs and ``min_seconds`` of
     timed stepping, at most ``max_repeats`` runs, and no new run once ``budget_seconds`` of
     timed stepping are spent (a long fluid run is then timed fewer than min_repeats times,
-    and the report says how many)."""
+    and the report says how many); and the model its spread is computed from
+    (:func:`cost_spread`, docs/metrics.md "Cost")."""
 
     min_repeats: int = 3
     min_seconds: float = 0.2
     max_repeats: int = 50
     budget_seconds: float = 15.0
-    # The runner spreads a rigid cell's cost pass over this many tasks, each timing this plan in
-    # whichever worker process is free later in the run, and pools them (merge_costs): a
-    # process's own timing offset (code alignment, caches) is then inside the reported spread
-    # instead of between runs. The driver itself times one process.
+    # The runner spreads a rigid cell's cost pass over this many tasks, each timing this plan
+    # later in the run in a process of its own (the local backend's cost rounds), and pools
+    # them (merge_costs): a process's own timing offset (code and array placement) and the
+    # machine's load at the time are then sampled inside the run instead of only between
+    # runs. The driver itself times one process.
     processes: int = 3
+    # The spread is the half-width of a prediction interval with this coverage for the log
+    # ratio of the cell's figure in this run and in another run on the same machine
+    # (cost_spread; docs/metrics.md "Cost").
+    coverage: float = 0.95
+    # Its prior, fitted on three sets of three fresh runs of the 80 committed rigid cells on
+    # the shared 2-CPU CI machine (benchmarks/results/cost_prior.md, fit_cost_prior.py:
+    # maximum likelihood 0.012 to 0.027 and 0.5 to 0.7 degrees of freedom): the standard
+    # deviation of the log of one pass's figure about the cell's, as a scaled inverse
+    # chi-square with ``prior_dof`` degrees of freedom (a heavy tail: some cells' passes
+    # scatter by tens of per cent) that the passes' own scatter updates; and the standard
+    # deviation of a whole run's log offset (the machine's state over the run, which no pass
+    # of the run can see; all cells' median shift between two runs measured 0.4 to 2.6 %).
+    prior_sd: float = 0.015
+    prior_dof: float = 1.0
+    run_sd: float = 0.012
 
 
 @dataclass
@@ -95,13 +112,16 @@ class Cost:
     cpu: list[float] = field(default_factory=list)
     note: str = ""
 
-    def to_dict(self) -> dict[str, Any]:
-        """The figures docs/metrics.md defines ("Cost")."""
+    def to_dict(self, plan: CostPlan | None = None, spread: bool = True) -> dict[str, Any]:
+        """The figures docs/metrics.md defines ("Cost"), of this one process's pass (without
+        the spread with ``spread=False``)."""
         if not self.wall or self.simulated <= 0:
             return {"steps": self.steps, "simulated_time": self.simulated, "repeats": 0,
                     "note": self.note or "nothing was timed"}
         w_min, w_med, w_max = min(self.wall), statistics.median(self.wall), max(self.wall)
         per = 1.0 / self.simulated
+        spread = (cost_spread([self.wall], [self.cpu], plan=plan) if spread else
+                  {"spread": None, "spread_median": None})
         return {
             "steps": self.steps,
             "simulated_time": self.simulated,
@@ -111,10 +131,10 @@ class Cost:
             "per_simulated_second": w_min * per,
             "per_simulated_second_median": w_med * per,
             "cpu_per_simulated_second": min(self.cpu) * per,
-            # The spread: the interquartile range of the repetitions relative to their median
-            # (robust to the one repetition a busy machine disturbs; 0 with one repetition),
-            # and the full range relative to the minimum.
-            "spread": _iqr(self.wall) / w_med if w_med > 0 else 0.0,
+            # The spreads: half-widths of the prediction intervals of cost_spread (of the
+            # minimum, and of the median), and the full range relative to the minimum.
+            "spread": spread["spread"], "spread_median": spread["spread_median"],
+            "spread_model": spread,
             "range": (w_max - w_min) / w_min if w_min > 0 else 0.0,
             "us_per_step": 1e6 * w_min / self.steps if self.steps else None,
             "note": self.note,
@@ -124,11 +144,13 @@ class Cost:
         }
 
 
-def merge_costs(parts: list[dict[str, Any]]) -> dict[str, Any]:
-    """One cost from the cost passes of several processes (``Cost.to_dict`` of each): the
-    repetitions pooled, and the spread the larger of the pooled interquartile range and the
-    range of the processes' medians (both relative to the pooled median), so that a cell timed
-    again in another process lands inside it. Parts that timed nothing are left out."""
+def merge_costs(parts: list[dict[str, Any]], plan: CostPlan | None = None) -> dict[str, Any]:
+    """One cost from the cost passes of several processes (``Cost.to_dict`` of each, with the
+    ``pid`` that timed it when known). The figures are the geometric means over the passes of
+    each pass's minimum and median (every pass weighs the same, however many repetitions it
+    took, so a cell timed in one pass and one timed in three estimate the same thing), and the
+    spread the prediction half-width of :func:`cost_spread` from the passes' scatter. Parts
+    that timed nothing are left out; the repetitions are kept, pooled, in ``wall_samples``."""
     timed = [p for p in parts if p.get("repeats") and p.get("wall_samples")]
     if not timed:
         return dict(parts[0]) if parts else {}
@@ -137,14 +159,129 @@ def merge_costs(parts: list[dict[str, Any]]) -> dict[str, Any]:
                 wall=[w for p in timed for w in p["wall_samples"]],
                 cpu=[c for p in timed for c in p["cpu_samples"]],
                 note="; ".join(dict.fromkeys(p["note"] for p in timed if p.get("note"))))
-    out = cost.to_dict()
-    medians = [statistics.median(p["wall_samples"]) for p in timed]
-    pooled = out["wall_median"]
-    between = (max(medians) - min(medians)) / pooled if pooled > 0 else 0.0
-    out.update(processes=len(timed), between_processes=between,
-               within_process=out["spread"], spread=max(out["spread"], between),
-               process_medians=medians)
+    out = cost.to_dict(plan, spread=False)
+    walls = [p["wall_samples"] for p in timed]
+    pids = [p.get("pid") for p in timed]
+    minima = [min(w) for w in walls]
+    medians = [statistics.median(w) for w in walls]
+    w_min, w_med = _geomean(minima), _geomean(medians)
+    cpu_min = _geomean([min(p["cpu_samples"]) for p in timed])
+    per = 1.0 / out["simulated_time"]
+    spread = cost_spread(walls, [p["cpu_samples"] for p in timed],
+                         pids if all(p is not None for p in pids) else None, plan)
+    out.update(processes=len(timed), wall_min=w_min, wall_median=w_med, cpu_min=cpu_min,
+               per_simulated_second=w_min * per, per_simulated_second_median=w_med * per,
+               cpu_per_simulated_second=cpu_min * per,
+               us_per_step=1e6 * w_min / out["steps"] if out["steps"] else None,
+               pooled_min=min(cost.wall), pooled_median=statistics.median(cost.wall),
+               spread=spread["spread"], spread_median=spread["spread_median"],
+               spread_model=spread,
+               process_minima=minima, process_medians=medians, process_repeats=[
+                   len(w) for w in walls], process_pids=pids)
     return out
+
+
+def cost_spread(passes: list[list[float]], cpus: list[list[float]] | None = None,
+                pids: list | None = None, plan: CostPlan | None = None) -> dict[str, Any]:
+    """The spread of a cell's cost from its passes' timed repetitions (s, wall clock), one list
+    per pass, with their process CPU times when known (docs/metrics.md "Cost", "Spread").
+
+    For each figure (a pass's minimum, and its median), with x_j the log of pass j's figure and
+    the run's figure exp(mean x_j), the model is
+
+        x_j = true + run offset (sd ``run_sd``, the machine's state over the run, which no
+              pass can see) + pass offset (process placement, load at the time; sd sigma)
+
+    sigma^2 is estimated from the passes' scatter updated from the prior (``prior_sd`` with
+    ``prior_dof`` degrees of freedom): s^2 = (dof0 prior_sd^2 + sum (x_j - mean)^2) /
+    (dof0 + k - 1); for the median floored by the variance a pass's median has from its own
+    repetitions' scatter ((pi/2) (IQR / 1.349 / median)^2 / n; a minimum's own noise is far
+    smaller, and in the passes' scatter). The log ratio of this run's figure to an
+    independent rerun's (as many passes) is then sqrt(2) run_sd Z + sqrt(2 s^2 / k_eff) T,
+    Z standard normal (the run offsets) and T Student t with dof0 + k - 1 degrees of freedom
+    (the passes' mean offsets, their scale estimated): the half-width is the two-sided
+    ``coverage`` quantile of that sum, plus the load this run measured: the mean over passes of
+    log(wall / CPU time) of the figure (time the process spent waiting for a CPU; 0 where CPU
+    time is not below wall time, as with several threads), which a rerun on a quieter machine
+    would not see.
+    k_eff is the number of distinct processes among the passes when ``pids`` are given
+    (passes in one process share its placement), else the number of passes. ``spread`` is the
+    minimum's half-width and ``spread_median`` the median's, relative: a rerun's figure lies
+    within a factor exp(+-spread) of this one with probability ``coverage`` under the model.
+    """
+    plan = plan or CostPlan()
+    keep = [j for j, w in enumerate(passes) if w and min(w) > 0]
+    walls = [list(passes[j]) for j in keep]
+    cpus = [list(cpus[j]) for j in keep] if cpus is not None else [[] for _ in keep]
+    k = len(walls)
+    k_eff = max(1, min(k, len({pids[j] for j in keep}))) if pids else max(k, 1)
+    dof = plan.prior_dof + max(k - 1, 0)
+    floor = statistics.fmean(_median_variance(w) for w in walls) if walls else 0.0
+    out: dict[str, Any] = {"passes": k, "processes": k_eff, "dof": dof,
+                           "coverage": plan.coverage, "within_sd": math.sqrt(floor)}
+    for name, figure in (("min", min), ("median", statistics.median)):
+        x = [math.log(figure(w)) for w in walls]
+        ss = sum((v - statistics.fmean(x)) ** 2 for v in x) if k > 1 else 0.0
+        s2 = (plan.prior_dof * plan.prior_sd ** 2 + ss) / dof if dof > 0 else math.inf
+        if name == "median":
+            s2 = max(s2, floor)
+        # the passes' part (Student t, its scale estimated) plus the run's (normal, known)
+        half = _t_plus_normal_quantile(math.sqrt(2 * s2 / k_eff), math.sqrt(2) * plan.run_sd,
+                                       dof, plan.coverage)
+        load = statistics.fmean(max(0.0, math.log(figure(w) / figure(c))) if c and figure(c) > 0
+                                else 0.0 for w, c in zip(walls, cpus, strict=True)) if k else 0.0
+        out[f"{name}_between_sd"] = math.sqrt(ss / (k - 1)) if k > 1 else None
+        out[f"{name}_load"] = load
+        out[f"{name}_half_width"] = half + load
+    out["spread"] = out["min_half_width"]
+    out["spread_median"] = out["median_half_width"]
+    return out
+
+
+def _t_plus_normal_quantile(a: float, b: float, dof: float, coverage: float) -> float:
+    """h with P(|a T + b Z| <= h) = coverage, T Student t with dof degrees of freedom and Z
+    standard normal, independent: the normal integrated out by Gauss-Hermite quadrature, h
+    found by bisection."""
+    from scipy.special import ndtri, stdtr, stdtrit  # scipy.stats imports far more
+
+    p = 0.5 + coverage / 2
+    if not (math.isfinite(a) and dof > 0):
+        return math.inf
+    if b <= 0:
+        return a * float(stdtrit(dof, p))
+    if a <= 0:
+        return b * float(ndtri(p))
+    z, w = np.polynomial.hermite_e.hermegauss(32)
+    w = w / w.sum()
+
+    def miss(h: float) -> float:
+        return float(np.sum(w * (stdtr(dof, (-h - b * z) / a) + 1 - stdtr(dof, (h - b * z) / a))))
+
+    # Adding independent symmetric unimodal noise only widens: the larger of the two parts'
+    # own quantiles bounds h from below, their sum (almost always) from above.
+    qt, qz = a * float(stdtrit(dof, p)), b * float(ndtri(p))
+    lo, hi = max(qt, qz), qt + qz
+    while miss(hi) > 1 - coverage:
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1e-4 * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if miss(mid) > 1 - coverage else (lo, mid)
+    return hi
+
+
+def _median_variance(wall: list[float]) -> float:
+    """Variance of the log of a pass's median from its repetitions' scatter alone:
+    (pi/2) sigma^2 / n with sigma = IQR / 1.349 relative to the median (0 below 2 samples)."""
+    med = statistics.median(wall)
+    if len(wall) < 2 or med <= 0:
+        return 0.0
+    sigma = _iqr(wall) / 1.349 / med
+    return math.pi / 2 * sigma ** 2 / len(wall)
+
+
+def _geomean(values: list[float]) -> float:
+    return math.exp(statistics.fmean(math.log(v) for v in values)) if all(
+        v > 0 for v in values) else statistics.fmean(values)
 
 
 def _iqr(values: list[float]) -> float:
@@ -373,7 +510,7 @@ def run(engine, scene: Scene, integrator: str, dt: float, *,
     result = RunResult(trajectory=traj)
     if cost is not None:
         result.cost = measure_cost(lambda: engine.open(scene, integrator, dt), steps, dt, cost)
-        traj.meta["cost"] = result.cost.to_dict()
+        traj.meta["cost"] = result.cost.to_dict(cost)
     return result
 
 
@@ -394,7 +531,7 @@ def _run_fluid(engine, scene: Scene, integrator: str, dt: float, cost: CostPlan 
     if cost is not None:
         result.cost = measure_cost(lambda: engine.open_fluid(scene, integrator, dt), steps,
                                    None, cost)
-        record_.meta["cost"] = result.cost.to_dict()
+        record_.meta["cost"] = result.cost.to_dict(cost)
     return result
 
 

@@ -1,10 +1,11 @@
 """The accuracy-against-cost figure of a case: which run buys the most accuracy per second.
 
-One point per run: x its cost (wall seconds per simulated second, the fastest timed repetition,
-as in the tables), y its accuracy metric (:func:`crosscheck.report.plots.accuracy_metric`), with
-the run's colour and marker. The cost spread is a horizontal bar over the interquartile range of
-the timed repetitions around their median (``cost_median`` +- ``cost_spread`` x median / 2;
-docs/metrics.md, "Cost"), so a point a loaded machine disturbed shows it. The Pareto front (runs
+One point per run: x its cost (wall seconds per simulated second, the fastest timed repetition of
+each cost pass, as in the tables), y its accuracy metric
+(:func:`crosscheck.report.plots.accuracy_metric`), with the run's colour and marker. The cost
+spread is a horizontal bar over the interval a rerun's cost lands in with the spread's coverage
+(``cost`` x exp(+-``cost_spread``); docs/metrics.md, "Cost"), so a point whose cost a rerun may
+move shows it. The Pareto front (runs
 no other run beats in both) is a thick grey staircase through ringed points; the case's limits
 on the metric are dashed lines. Both axes are logarithmic and labelled
 (:func:`crosscheck.report.figure.log_ticks`).
@@ -12,6 +13,7 @@ on the metric are dashed lines. Both axes are logarithmic and labelled
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from crosscheck.report import pareto
@@ -20,11 +22,11 @@ from crosscheck.report.style import Looks, run_label
 
 
 def spread_bar(cell: dict[str, Any]) -> tuple[float, float] | None:
-    """(low, high) of the interquartile range of the cell's timed repetitions, or None."""
-    median, spread = cell.get("cost_median"), cell.get("cost_spread")
-    if not median or spread is None or spread <= 0:
+    """(low, high) of the interval a rerun's cost lands in (cost x exp(-+spread)), or None."""
+    cost, spread = cell.get("cost"), cell.get("cost_spread")
+    if not cost or spread is None or spread <= 0:
         return None
-    return median * (1 - spread / 2), median * (1 + spread / 2)
+    return cost * math.exp(-spread), cost * math.exp(spread)
 
 
 def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = None
@@ -51,7 +53,6 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
         look = looks[run_label(c)]
         bar = spread_bar(c)
         if bar is not None:
-            ax.plot([min(x, bar[0]), bar[1]], [y, y], color=look.color, linewidth=0.8)
             ax.plot(list(bar), [y, y], color=look.color, linewidth=3.5, alpha=0.45,
                     solid_capstyle="butt")
         # One legend entry per run: a run's steps share its look (a sweep's page has many).
@@ -68,8 +69,8 @@ def cost_figure(case: str, cells: list[dict[str, Any]], looks: Looks | None = No
     ax.set_yscale("log")
     draw_limits(ax, limits(cells, metric))
     ax.margins(x=0.15, y=0.2)
-    ax.set_xlabel("cost: wall s per simulated s (marker: fastest repetition; bar: interquartile"
-                  " range around the median)", fontsize=8)
+    ax.set_xlabel("cost: wall s per simulated s (marker: fastest repetition, geometric mean of"
+                  " the passes; bar: where a rerun lands, the cost spread)", fontsize=8)
     ax.set_ylabel(f"{metric}" + (f" ({unit})" if unit else " (1)"), fontsize=8)
     ax.set_title(f"{case}: accuracy against cost (lower left is better)", fontsize=9)
     ax.tick_params(labelsize=7)

@@ -210,7 +210,7 @@ def _cell_table(cells: list[dict[str, Any]]) -> str:
     names = [n for n in TABLE_METRICS if any(n in (c.get("metrics") or {}) for c in cells)]
     names += extra
     head = ("<tr><th class='l'>engine</th><th class='l'>integrator</th><th>dt</th>"
-            "<th class='l'>status</th><th>cost (s/s, min +spread)</th><th>cost / MuJoCo</th>"
+            "<th class='l'>status</th><th>cost (s/s, min ±spread)</th><th>cost / MuJoCo</th>"
             + "".join(f"<th>{_e(n)}</th>" for n in names)
             + "<th class='l'>worst</th><th class='l'>note</th></tr>")
     rows = [head]

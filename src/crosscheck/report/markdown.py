@@ -64,7 +64,7 @@ def render(doc: dict[str, Any]) -> str:
     lines += overview.matrix_markdown(view) + [""]
     lines += ["### Every cell", "",
               "| | case | engine | integrator | dt | worst metric | value | limit | "
-              "cost (s/s, min +spread) | cost / MuJoCo | note |",
+              "cost (s/s, min ±spread) | cost / MuJoCo | note |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     ratios = mujoco_cost_ratios(doc.get("cells", []))
     for c in sort_cells(doc.get("cells", [])):

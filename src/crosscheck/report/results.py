@@ -149,8 +149,9 @@ MUJOCO_DEFAULT_INTEGRATOR = "euler"
 
 
 def cost_text(cell: dict[str, Any]) -> str:
-    """A cell's cost for people: minimum with the spread and count of its repetitions
-    ("1.2e-04 +3% n=5"), or why there is none."""
+    """A cell's cost for people: minimum with the spread (where a rerun's cost lands with the
+    spread's coverage, docs/metrics.md "Cost") and count of its repetitions
+    ("1.2e-04 ±3% n=5"), or why there is none."""
     cost = cell.get("cost")
     if cost is None:
         detail = cell.get("cost_detail") or {}
@@ -159,7 +160,7 @@ def cost_text(cell: dict[str, Any]) -> str:
     spread = cell.get("cost_spread")
     text = f"{cost:.3g}"
     if spread is not None:
-        text += f" +{100 * spread:.0f}%"
+        text += f" ±{100 * spread:.0f}%"
     if detail.get("repeats"):
         text += f" n={detail['repeats']}"
     return text

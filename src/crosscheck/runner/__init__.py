@@ -34,7 +34,13 @@ def schedule(tasks: list[dict[str, Any]], backend, on_result: Callable[[dict, Re
         else:
             ready.append(task)
     inflight = 0
-    while ready or inflight:
+    held: list[dict[str, Any]] = []  # extra cost passes, released once no cell is waiting
+    while ready or inflight or held:
+        if held and not any(t.get("kind") != "cost" for t in ready):
+            # By round (runner/cell.py cost_followups), so that each worker moves to a fresh
+            # process once per round (LocalBackend.submit).
+            ready.extend(sorted(held, key=lambda t: t.get("process_round") or 0))
+            held.clear()
         while ready and backend.free():
             backend.submit(ready.popleft())
             inflight += 1
@@ -52,10 +58,10 @@ def schedule(tasks: list[dict[str, Any]], backend, on_result: Callable[[dict, Re
                     ready.appendleft(dep)
             if task.get("kind") == "cell":
                 # More processes' cost passes of this cell, queued last so they run later and
-                # in whichever worker is then free (runner/cell.py, cost_followups).
+                # in other worker processes (runner/cell.py, cost_followups).
                 from crosscheck.runner.cell import cost_followups
 
-                ready.extend(cost_followups(task, result))
+                held.extend(cost_followups(task, result))
             on_result(task, result)
     # Anything still waiting depended on a reference that never ran (should not happen).
     for deps in waiting.values():

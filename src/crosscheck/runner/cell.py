@@ -165,7 +165,7 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
     run_seconds = time.perf_counter() - t0
     result["run_seconds"] = run_seconds
     if ran.cost is not None:
-        result.update(_cost_fields(ran.cost.to_dict()))
+        result.update(_cost_fields(ran.cost.to_dict(plan)))
     output = ran.output
     if ran.fluid is not None or not _is_trajectory(output):
         return _finish_fluid(task, scene, output, result, run_seconds, body=ran.trajectory)
@@ -177,7 +177,9 @@ def _execute_cell(task: dict[str, Any]) -> dict[str, Any]:
 def cost_followups(task: dict[str, Any], result: dict[str, Any]) -> list[dict[str, Any]]:
     """The extra cost tasks of a finished rigid cell whose cost plan asks for more than one
     process (driver.CostPlan.processes): each times the same number of steps as the cell's own
-    cost pass, in whichever worker is free when it comes up (the scheduler queues them last)."""
+    cost pass. The scheduler queues them after every cell, by ``process_round`` (pass r + 1 has
+    round r), and the local backend runs round r in worker processes started for it, so a
+    cell's passes land in distinct processes (runner/local.py, LocalBackend.submit)."""
     cost = task.get("cost", True)
     if task.get("kind") != "cell" or not cost or result.get("fluid"):
         return []
@@ -198,7 +200,7 @@ def cost_followups(task: dict[str, Any], result: dict[str, Any]) -> list[dict[st
         return []
     keep = ("case", "case_file", "engine", "integrator", "dt", "timeout", "engine_refs", "cost")
     return [dict({k: task.get(k) for k in keep}, kind="cost", id=f"{task['id']}#cost{k + 2}",
-                 cell=task["id"], steps=int(detail["steps"]))
+                 cell=task["id"], steps=int(detail["steps"]), process_round=k + 1)
             for k in range(plan.processes - 1)]
 
 
@@ -211,21 +213,28 @@ def _execute_cost(task: dict[str, Any]) -> dict[str, Any]:
     integrator, dt = task["integrator"], float(task["dt"])
     cost = task.get("cost", True)
     plan = CostPlan(**cost) if isinstance(cost, dict) else CostPlan()
+    # No spread here: pool_costs computes the cell's from all its passes (and a fresh worker
+    # that only times is spared importing scipy for it).
     result["cost_detail"] = measure_cost(lambda: engine.open(scene, integrator, dt),
-                                         int(task["steps"]), dt, plan).to_dict()
+                                         int(task["steps"]), dt, plan).to_dict(plan, spread=False)
     result["pid"] = os.getpid()
+    if isinstance(cost, dict):
+        result["cost_plan"] = cost  # the spread's model parameters, for pool_costs
     return result
 
 
 def pool_costs(cell: dict[str, Any], extra: list[dict[str, Any]]) -> None:
     """Replace a cell's cost fields by the pooled cost of its own pass and its followups'."""
-    from crosscheck.engines.driver import merge_costs
+    from crosscheck.engines.driver import CostPlan, merge_costs
 
     own = cell.get("cost_detail")
-    done = [e["cost_detail"] for e in extra if e.get("status") == "ok" and e.get("cost_detail")]
+    done = [dict(e["cost_detail"], pid=e.get("pid")) for e in extra
+            if e.get("status") == "ok" and e.get("cost_detail")]
     if not own or not done:
         return
-    merged = merge_costs([own, *done])
+    cost = next((e["cost_plan"] for e in extra if isinstance(e.get("cost_plan"), dict)), None)
+    plan = CostPlan(**cost) if cost else CostPlan()
+    merged = merge_costs([dict(own, pid=cell.get("pid")), *done], plan)
     merged["pids"] = sorted({p for p in [cell.get("pid"), *(e.get("pid") for e in extra)]
                              if p is not None})
     failed = [e for e in extra if e.get("status") != "ok"]
@@ -241,6 +250,7 @@ def _cost_fields(cost: dict[str, Any]) -> dict[str, Any]:
     return {"cost": cost.get("per_simulated_second"),
             "cost_median": cost.get("per_simulated_second_median"),
             "cost_spread": cost.get("spread"),
+            "cost_median_spread": cost.get("spread_median"),
             "cpu_cost": cost.get("cpu_per_simulated_second"),
             "wall_time": cost.get("wall_min"),
             "cost_detail": cost}

@@ -71,6 +71,7 @@ class _Slot:
         self.task: dict[str, Any] | None = None
         self.deadline = 0.0
         self.started = 0.0
+        self.round = 0  # the cost round its process was started for (see submit)
 
 
 class LocalBackend:
@@ -82,6 +83,7 @@ class LocalBackend:
         # one: compiled kernels (numba) and engine state accumulate over hundreds of cells.
         self.max_worker_rss_mb = max_worker_rss_mb
         self.recycled = 0
+        self.fresh_for_cost = 0  # processes started for a new cost round (submit)
         self._ctx = mp.get_context("spawn")
         self._slots = [_Slot() for _ in range(self.workers)]
         self.peak_rss_total_mb = 0.0
@@ -127,7 +129,22 @@ class LocalBackend:
         return sum(s.task is not None for s in self._slots)
 
     def submit(self, task: dict[str, Any]) -> None:
-        slot = next(s for s in self._slots if s.task is None)
+        # A cell's extra cost passes carry their round (runner/cell.py cost_followups): pass r
+        # runs in a process started for round r, so that a cell's passes land in as many
+        # processes (each with its own code and array placement) as it has passes. A free
+        # worker of that round is preferred; another is retired and started afresh.
+        rnd = int(task.get("process_round") or 0)
+        free = [s for s in self._slots if s.task is None]
+        slot = next((s for s in free if s.round == rnd), free[0])
+        if rnd and slot.round != rnd:
+            if slot.proc is not None and slot.proc.is_alive():
+                try:
+                    slot.conn.send(None)
+                except OSError:
+                    pass
+                self._discard(slot, kill=False)
+            self.fresh_for_cost += 1
+            slot.round = rnd
         if slot.proc is None or not slot.proc.is_alive():
             self._discard(slot, kill=True)
             self._start(slot)

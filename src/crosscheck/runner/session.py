@@ -160,4 +160,5 @@ def _refresh(doc, cells, backend, started) -> None:
         "peak_rss_worker_mb": round(max(rss), 1) if rss else None,
         "wall_seconds": round(time.monotonic() - started, 2),
         "workers_recycled": getattr(backend, "recycled", None),
+        "workers_started_for_cost": getattr(backend, "fresh_for_cost", None),
     }
