@@ -138,11 +138,7 @@ class LocalBackend:
         slot = next((s for s in free if s.round == rnd), free[0])
         if rnd and slot.round != rnd:
             if slot.proc is not None and slot.proc.is_alive():
-                try:
-                    slot.conn.send(None)
-                except OSError:
-                    pass
-                self._discard(slot, kill=False)
+                self._retire(slot)
             self.fresh_for_cost += 1
             slot.round = rnd
         if slot.proc is None or not slot.proc.is_alive():
@@ -201,12 +197,16 @@ class LocalBackend:
             return
         self.sample_memory(force=True)  # catch the peak before the worker goes
         if tree_rss_mb(slot.proc.pid) > self.max_worker_rss_mb:
-            try:
-                slot.conn.send(None)
-            except OSError:
-                pass
-            self._discard(slot, kill=False)
+            self._retire(slot)
             self.recycled += 1
+
+    def _retire(self, slot: _Slot) -> None:
+        """Ask an idle worker to exit (None ends its loop) and drop its slot's process."""
+        try:
+            slot.conn.send(None)
+        except OSError:
+            pass
+        self._discard(slot, kill=False)
 
     def sample_memory(self, force: bool = False) -> None:
         now = time.monotonic()
