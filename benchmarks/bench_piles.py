@@ -6,7 +6,8 @@ PyBullet and Pymunk on the same scenes, in one run, with each run's soundness be
         [--only SCENE ...] [--cells LABEL ...] [--out DIR]
 
 Scenes: tests/piles/pile_scenes.py (shared with tests/piles/test_pile_scenes.py): spheres into a
-bin (200, 1000, 5000), 200 spheres onto the bare ground, 200 cubes into a bin, a 2D pile of 200
+bin (200, 1000, 5000), 200 spheres onto the bare ground, 200 cubes into a bin and onto the
+bare ground, a 2D pile of 200
 circles and squares into a 2D bin; dt = 1e-3.
 
 Engines, through crosscheck's adapters and run driver only (engines/driver.py):
@@ -102,6 +103,7 @@ def scenes(sizes: list[int], only: list[str] | None, duration: float
     out = [(f"spheres_bin_{n}", lambda n=n: pile_scenes.spheres(n, duration=d)) for n in sizes]
     out += [("spheres_ground_200", lambda: pile_scenes.spheres(200, walls=False, duration=d)),
             ("boxes_bin_200", lambda: pile_scenes.boxes(200, duration=d)),
+            ("boxes_ground_200", lambda: pile_scenes.boxes(200, walls=False, duration=d)),
             ("pile_2d_200", lambda: pile_scenes.pile_2d(200, duration=d))]
     out = [s for s in out if not only or s[0] in only]
     if d != DEFAULT_DURATION:  # another duration is another scene in the results

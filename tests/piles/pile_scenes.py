@@ -162,16 +162,20 @@ def _tilt(i: int) -> list[float]:
     return [math.cos(angle / 2), *(s * axis)]
 
 
-def boxes(n: int, *, duration: float = 1.0, engines=("inhouse", "mujoco", "pybullet")) -> Pile:
+def boxes(n: int, *, walls: bool = True, duration: float = 1.0,
+          engines=("inhouse", "mujoco", "pybullet")) -> Pile:
     """Cubes on the grid: a tilted cube's half-diagonal (0.0866 m) can exceed the 0.055 m half
-    spacing, so the grid is spread to 0.18 m (no overlap at t = 0 for any orientation)."""
+    spacing, so the grid is spread to 0.18 m (no overlap at t = 0 for any orientation); into a
+    bin, or (``walls=False``) onto the bare ground."""
     centres, _ = grid3d(n)
     centres = centres * BOX_SPREAD
     centres[:, 2] += FLOOR * (1 - BOX_SPREAD) + 0.04  # lowest cube's corner 1 cm above ground
-    name = f"boxes_bin_{n}"
+    name = f"boxes_{'bin' if walls else 'ground'}_{n}"
     text = _header(name, 3, duration, list(engines))
-    walls_text, inner = _bin3d(centres, HALF_DIAGONAL)
-    text += walls_text
+    inner: tuple[float, ...] = ()
+    if walls:
+        walls_text, inner = _bin3d(centres, HALF_DIAGONAL)
+        text += walls_text
     shape = f"{{ box = {{ size = {_vec([SIDE] * 3)} }} }}"
     text += "".join(_body(f"b{i}", shape, c, _tilt(i)) for i, c in enumerate(centres))
     return Pile(name, load_case_text(text, name), n, 3, inner, text)

@@ -63,6 +63,7 @@ def test_sphere_bins(n):
 def test_other_scenes():
     _check(spheres(200, walls=False), 200)
     _check(boxes(200), 200)
+    _check(boxes(200, walls=False), 200)
     _check(pile_2d(200), 200)
     cg = with_mujoco_solver(spheres(200), "cg")
     assert cg.scene.engine_options["mujoco"] == {"solver": "cg"}
