@@ -232,14 +232,12 @@ def class_program(scene: Scene):
     restitution. Handlers only for class pairs where that product is not the pair value (an
     override, or two different restitutions) or the pair does not collide: their number does
     not grow with the number of bodies."""
-    from crosscheck.scene.contact import GROUND, material_classes
+    from crosscheck.scene.contact import material_classes
 
     classes = material_classes(scene)
-    materials = {t.name: t.material for t in (*scene.bodies, *scene.statics)}
-    if scene.ground is not None:
-        materials[GROUND] = scene.ground.material
-    shape_values = [(math.sqrt(materials[m[0]].friction), math.sqrt(materials[m[0]].restitution))
-                    for m in classes.members]
+    # a class's values with itself are its material's (the pair rule on one material is exact)
+    own = [classes.values[c][c] for c in range(classes.k)]
+    shape_values = [(math.sqrt(m.friction), math.sqrt(m.restitution)) for m in own]
     out = []
     for i, j in classes.class_pairs():
         a, b = next(classes.pairs_between(i, j))
