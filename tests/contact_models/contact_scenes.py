@@ -81,6 +81,17 @@ class Run:
         return h.hexdigest()
 
 
+def momenta(run: Run):
+    """Total linear momentum and angular momentum about the origin (2D: its z component)."""
+    st = run.state
+    lin = st.P.sum(axis=0)
+    if run.model.dimension == 3:
+        ang = (np.cross(st.x, st.P) + st.L).sum(axis=0)
+    else:
+        ang = np.sum(st.x[:, 0] * st.P[:, 1] - st.x[:, 1] * st.P[:, 0] + st.L)
+    return lin, ang
+
+
 def sphere(name: str, pos, radius: float = 0.1, mass: float = 1.0, velocity=None,
            angular=None, material: str | None = None) -> str:
     out = f"""[[bodies]]

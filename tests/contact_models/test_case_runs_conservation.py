@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from contact_scenes import Run, box, circle, oblique_impact_bodies, scene, sphere
+from contact_scenes import Run, box, circle, momenta, oblique_impact_bodies, scene, sphere
 
 MATERIALS = """[materials.dead]
 friction = 0.5
@@ -59,16 +59,6 @@ def test_impulse_lcp_gains_no_energy_in_a_dissipative_scene(material, dim):
     assert worst <= total_mass * G * 1e-5
 
 
-def _momenta(run: Run):
-    st = run.state
-    lin = st.P.sum(axis=0)
-    if run.model.dimension == 3:
-        ang = (np.cross(st.x, st.P) + st.L).sum(axis=0)
-    else:
-        ang = np.sum(st.x[:, 0] * st.P[:, 1] - st.x[:, 1] * st.P[:, 0] + st.L)
-    return lin, ang
-
-
 @pytest.mark.parametrize("dim", [3, 2])
 def test_penalty_with_rk4_keeps_momentum_through_oblique_impacts_without_gravity(dim):
     # test_impulse_lcp.py's scene: an off-centre hit with friction and spin between a sphere and
@@ -76,10 +66,10 @@ def test_penalty_with_rk4_keeps_momentum_through_oblique_impacts_without_gravity
     bodies = oblique_impact_bodies(dim)
     run = Run(scene(bodies, dim=dim, gravity=False, ground=None, materials=MATERIALS), "rk4",
               "penalty")
-    lin0, ang0 = _momenta(run)
+    lin0, ang0 = momenta(run)
     v0 = run.velocities().copy()
     run.advance(400, 1e-3)
-    lin, ang = _momenta(run)
+    lin, ang = momenta(run)
     assert not np.allclose(run.velocities(), v0)  # something was hit
     assert np.all(np.abs(run.velocities()[2]) > 0.1)  # the third body too
     # Every stage's contact forces are equal and opposite, so RK4's weighted sum of stages keeps

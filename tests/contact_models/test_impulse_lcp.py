@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from contact_scenes import Run, box, circle, oblique_impact_bodies, scene, sphere
+from contact_scenes import Run, box, circle, momenta, oblique_impact_bodies, scene, sphere
 
 MATERIALS = """[materials.half]
 friction = 0.5
@@ -76,16 +76,6 @@ def test_touching_cradle_sequential_or_simultaneous(collision, expected):
     np.testing.assert_allclose(run.velocities()[:, 0], expected, rtol=0, atol=1e-9)
 
 
-def _momenta(run: Run):
-    st = run.state
-    lin = st.P.sum(axis=0)
-    if run.model.dimension == 3:
-        ang = (np.cross(st.x, st.P) + st.L).sum(axis=0)
-    else:
-        ang = np.sum(st.x[:, 0] * st.P[:, 1] - st.x[:, 1] * st.P[:, 0] + st.L)
-    return lin, ang
-
-
 # The penalty model with symplectic Euler: its kick adds equal and opposite forces at one point
 # and its drift keeps x x P and L, so both momenta are kept to round-off; RK4 keeps angular
 # momentum (a quadratic invariant) only to its truncation error (measured 1.4e-6 here).
@@ -98,10 +88,10 @@ def test_momentum_is_conserved_through_oblique_impacts_without_gravity(model, in
     bodies = oblique_impact_bodies(dim)
     run = Run(scene(bodies, dim=dim, gravity=False, ground=None, materials=MATERIALS),
               integrator, model)
-    lin0, ang0 = _momenta(run)
+    lin0, ang0 = momenta(run)
     v0 = run.velocities().copy()
     run.advance(400, 1e-3)
-    lin, ang = _momenta(run)
+    lin, ang = momenta(run)
     assert not np.allclose(run.velocities(), v0)  # something was hit
     assert np.all(np.abs(run.velocities()[2]) + np.abs(run.velocities()[1]) > 0)
     np.testing.assert_allclose(lin, lin0, rtol=0, atol=1e-13)
