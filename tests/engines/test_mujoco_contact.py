@@ -220,12 +220,16 @@ def test_settings_are_read_back():
     assert c["impratio"] == 10.0 and c["noslip_iterations"] == 0
     assert c["solver"] == "mjSOL_NEWTON" and c["iterations"] == 100 and c["tolerance"] == 1e-8
     assert "mjDSBL_CONTACT" not in traj.meta["effective"]["disableflags"]
-    (pair,) = c["pairs"]  # ball and ground share one material: one class, MuJoCo's collision
+    # ball and ground share one material, so the pair's values are each one's own: MuJoCo's
+    # collision. A body and a fixed surface are never one class (the ground never meets the
+    # ground): the ball's class has bit 1, the ground's bit 2, and each meets only the other.
+    (pair,) = c["pairs"]
     assert set(pair["geoms"]) == {"g0", "ground"} and pair["condim"] == 3
     assert pair["friction"] == [0.5, 0.5, 0.0, 0.0, 0.0]
     assert pair["solref"] == list(SOLREF_INELASTIC) and pair["solimp"] == list(SOLIMP)
     assert pair["route"].startswith("MuJoCo's collision") and c["npair"] == 0
-    assert all(g["contype"] == 1 and g["conaffinity"] == 1 for g in c["geoms"])
+    bits = {g["name"]: (g["contype"], g["conaffinity"]) for g in c["geoms"]}
+    assert bits == {"g0": (1, 2), "ground": (2, 1)}, bits
 
 
 def test_condim_follows_the_pair_values():
@@ -303,10 +307,16 @@ def test_every_contact_carries_its_pair_values_whichever_route_made_it():
         seen.add(frozenset((a, b)))
     assert seen == {frozenset(p) for p in [("a", "b"), ("b", "c"), ("a", "ground"),
                                            ("b", "ground"), ("c", "ground")]}
-    # two classes (a, b and the ground share the material "m"; c): one entry per class pair
-    same, mixed = sorted(model.effective()["contact"]["pairs"], key=lambda p: "c" in p.values())
-    assert same["route"].startswith("MuJoCo's collision") and same["count"] == 3
-    assert mixed["route"] == "one explicit <pair> each" and mixed["count"] == 3
+    # three classes (bodies a and b of "m"; c; the ground of "m", fixed): one entry per class
+    # pair, the same-material ones (a-b; a, b with the ground) by MuJoCo's collision, those with
+    # c (a-c and b-c; c-ground) by explicit pairs
+    entries = model.effective()["contact"]["pairs"]
+    assert len(entries) == 4
+    count = {}
+    for e in entries:
+        count[e["route"]] = count.get(e["route"], 0) + e["count"]
+    assert count == {next(r for r in count if r.startswith("MuJoCo's collision")): 3,
+                     "one explicit <pair> each": 3}, count
     assert m.npair == 3  # a-c, b-c and c-ground only
 
 

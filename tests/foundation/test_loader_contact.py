@@ -582,3 +582,6 @@ def test_material_classes_give_every_pair_the_rule_s_values_with_a_table_that_do
     for i, j in classes.class_pairs():
         assert classes.count(i, j) == sum(1 for _ in classes.pairs_between(i, j))
     assert not classes.touches("wall", "ground")
+    # a class is all bodies or all fixed surfaces: its members have the same pairs
+    for i, members in enumerate(classes.members):
+        assert {n in classes.fixed for n in members} == {classes.fixed_class(i)}

@@ -226,42 +226,26 @@ class GroupPair:
 
 def surface_groups(scene: Scene):
     """The surfaces of a contact scene in groups whose members are interchangeable for Bullet:
-    a material class (``scene.contact.material_classes``) split into its bodies and its fixed
-    surfaces (a body touches every other surface, a static or the ground touches bodies only,
-    so a body and a static of one class do not have the same pairs and their factors may
-    differ). Returns (classes, groups, group pairs): groups in the order of their first
-    surface (bodies first), each group's class ``classes.of[group[0]]``; the group pairs that
-    hold at least one pair that can touch, in the order of their first pair in
-    ``Scene.contact_pairs()``. Their number grows with the number of classes, not of bodies.
+    the material classes (``scene.contact.material_classes``), whose members have the same
+    pairs and the same values (a class is all bodies or all fixed surfaces). Returns (classes,
+    groups, group pairs): the groups are the classes' members (bodies first); the group pairs
+    are the class pairs that hold at least one pair that can touch, in the order of their first
+    pair in ``Scene.contact_pairs()``. Their number grows with the number of classes, not of
+    bodies.
     """
     from crosscheck.scene.contact import GROUND, material_classes
 
     classes = material_classes(scene)
     pos = {name: i for i, name in enumerate(classes.surfaces)}
-    split: dict[tuple[int, bool], list[str]] = {}
-    for name in classes.surfaces:
-        split.setdefault((classes.of[name], name in classes.fixed), []).append(name)
-    keys = list(split)  # in the order of first members; bodies come before fixed surfaces
-    groups = [tuple(split[k]) for k in keys]
     out = []
-    for g, (cg, fixed_g) in enumerate(keys):
-        for h in range(g, len(keys)):
-            ch, fixed_h = keys[h]
-            mg, mh = groups[g], groups[h]
-            if fixed_g and fixed_h:  # fixed geometry never touches fixed geometry
-                continue
-            if g == h:  # a group of bodies with itself: every two of its members
-                if len(mg) < 2:
-                    continue
-                count, a, b = len(mg) * (len(mg) - 1) // 2, mg[0], mg[1]
-            else:  # g < h: g's first member comes first, a body (bodies precede fixed ones)
-                count, a, b = len(mg) * len(mh), mg[0], mh[0]
-            kind = ("body-body" if not fixed_h else
-                    "body-ground" if b == GROUND else "body-static")
-            out.append(GroupPair(g, h, count, a, b, kind, classes.values[cg][ch]))
+    for g, h in classes.class_pairs():
+        a, b = next(classes.pairs_between(g, h))  # g <= h: a body (bodies' classes come first)
+        kind = ("body-body" if not classes.fixed_class(h) else
+                "body-ground" if b == GROUND else "body-static")
+        out.append(GroupPair(g, h, classes.count(g, h), a, b, kind, classes.values[g][h]))
     rank = {"body-body": 0, "body-static": 1, "body-ground": 2}
     out.sort(key=lambda q: (rank[q.kind], pos[q.a], pos[q.b]))
-    return classes, groups, out
+    return classes, classes.members, out
 
 
 def contact_plan(scene: Scene, integrator: str | None = None
@@ -335,7 +319,7 @@ def contact_plan(scene: Scene, integrator: str | None = None
     # collide = false comes from [[contact_pairs]] entries only, whose surfaces are classes of
     # their own: one filter per such pair, never per pair of a class
     filtered = [pair for q in group_pairs if not q.material.collide
-                for pair in classes.pairs_between(classes.of[q.a], classes.of[q.b])]
+                for pair in classes.pairs_between(q.g, q.h)]
     return {"kind": "impact" if bouncy else "resting", "friction": per_surface(friction),
             "restitution": per_surface(restitution), "mass_ratio": ratio,
             "iterations": CONTACT_ITERATIONS_HEAVY if ratio >= HEAVY_RATIO else None,

@@ -133,10 +133,13 @@ def pairs(scene: Scene) -> tuple[ContactPair, ...]:
 class MaterialClasses:
     """The surfaces of a contact scene (bodies, statics, "ground") in classes such that the values
     of a pair depend on the two classes alone: surfaces whose materials have equal values share a
-    class, and a surface named in a ``[[contact_pairs]]`` entry is a class of its own. A pile of N
-    bodies of one material is one or two classes, so an engine is programmed with a K x K table
-    (per-surface values, the engine's own combination rule, explicit pairs only where that rule
-    gives other values) instead of N^2 pairs.
+    class, and a surface named in a ``[[contact_pairs]]`` entry is a class of its own. Bodies and
+    fixed surfaces (statics, the ground) are never in one class: a body touches every other
+    surface, fixed geometry touches bodies only, so the members of a class are interchangeable
+    (the same pairs, the same values) and a class is all bodies or all fixed (``fixed_class``).
+    A pile of N bodies of one material on the ground is two classes, so an engine is programmed
+    with a K x K table (per-surface values, the engine's own combination rule, explicit pairs
+    only where that rule gives other values) instead of N^2 pairs.
     """
 
     surfaces: tuple[str, ...]  # bodies, then statics, then "ground"
@@ -149,6 +152,10 @@ class MaterialClasses:
     def k(self) -> int:
         return len(self.members)
 
+    def fixed_class(self, i: int) -> bool:
+        """Whether class i holds fixed surfaces (statics, the ground); else it holds bodies."""
+        return self.members[i][0] in self.fixed
+
     def value(self, a: str, b: str) -> PairMaterial:
         """The values of the pair (a, b), a != b: the same as :func:`pair_material`."""
         return self.values[self.of[a]][self.of[b]]
@@ -159,28 +166,25 @@ class MaterialClasses:
 
     def pairs_between(self, i: int, j: int):
         """Every pair (a, b) that can touch with a in class i and b in class j (each unordered
-        pair once when i == j)."""
+        pair once when i == j): none when both classes are fixed."""
+        if self.fixed_class(i) and self.fixed_class(j):
+            return
         mi, mj = self.members[i], self.members[j]
         for x, a in enumerate(mi):
-            for b in (mi[x + 1:] if i == j else mj):
-                if self.touches(a, b):
-                    yield a, b
+            yield from ((a, b) for b in (mi[x + 1:] if i == j else mj))
 
     def count(self, i: int, j: int) -> int:
         """How many pairs ``pairs_between(i, j)`` yields, without listing them."""
-        fi = sum(n in self.fixed for n in self.members[i])
-        bi = len(self.members[i]) - fi
-        if i == j:
-            return bi * (bi - 1) // 2 + bi * fi
-        fj = sum(n in self.fixed for n in self.members[j])
-        bj = len(self.members[j]) - fj
-        return bi * bj + bi * fj + fi * bj
+        if self.fixed_class(i) and self.fixed_class(j):
+            return 0
+        n = len(self.members[i])
+        return n * (n - 1) // 2 if i == j else n * len(self.members[j])
 
     def class_pairs(self):
         """Every class pair (i, j), i <= j, holding at least one pair that can touch."""
         for i in range(self.k):
             for j in range(i, self.k):
-                if any(True for _ in self.pairs_between(i, j)):
+                if self.count(i, j) > 0:
                     yield i, j
 
 
@@ -188,6 +192,7 @@ def material_classes(scene: Scene) -> MaterialClasses:
     """The scene's surfaces in material classes, each class pair's values from
     :func:`pair_material` on one representative of each (the same values for every member)."""
     named = {n for entry in scene.pair_overrides for n in (entry.a, entry.b)}
+    fixed = frozenset(s.name for s in scene.statics) | ({GROUND} if scene.ground else set())
     things = [(b.name, b.material) for b in scene.bodies]
     things += [(s.name, s.material) for s in scene.statics]
     if scene.ground is not None:
@@ -197,7 +202,8 @@ def material_classes(scene: Scene) -> MaterialClasses:
     of: dict[str, int] = {}
     for name, m in things:
         key = (("named", name) if name in named else
-               ("values", m.friction, m.restitution, m.rolling_friction, m.torsional_friction))
+               ("values", name in fixed, m.friction, m.restitution, m.rolling_friction,
+                m.torsional_friction))
         if key not in keys:
             keys[key] = len(members)
             members.append([])
@@ -205,6 +211,5 @@ def material_classes(scene: Scene) -> MaterialClasses:
         members[keys[key]].append(name)
     reps = [m[0] for m in members]
     values = tuple(tuple(pair_material(scene, a, b) for b in reps) for a in reps)
-    fixed = frozenset(s.name for s in scene.statics) | ({GROUND} if scene.ground else set())
     return MaterialClasses(tuple(n for n, _ in things), fixed, of,
                            tuple(tuple(m) for m in members), values)
