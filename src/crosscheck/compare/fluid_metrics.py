@@ -92,6 +92,8 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out.update(channel_sedimentation(scene, record, params))
     elif name == "disc_settling":
         out.update(disc_settling(scene, record, params))
+    elif name == "published_sedimentation":
+        out.update(published_sedimentation(scene, record, params))
     if "total_energy" in s and "viscous_dissipation" in s:
         out.update(energy_audit(record, float(params.get("audit_start",
                                                          params.get("settle_time", 0.0)))))
@@ -520,6 +522,78 @@ def channel_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, fl
             "terminal_velocity_error": float(abs(u_sim / u_ref - 1.0)),
             "terminal_reynolds": 2.0 * a * u_sim / nu,
             "centreline_offset": float(np.max(np.abs(b["x"] - width / 2.0)))}
+
+
+def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, float]:
+    """A disc settling in a vertical channel against a published benchmark's terminal state
+    (``params.benchmark``, only ``"wachs_2009"``: reference/data/wachs2009_...csv, Wachs 2009,
+    the channel four diameters wide, at the scene's density ratio 1.5 or 3). The scene must be
+    the benchmark's: one circle, no obstacles, the domain's width w / d and the Galileo number
+    sqrt((r - 1) g d^3) / nu equal to the published ones (1e-3); otherwise nothing is measured and
+    ``terminal_velocity_error`` is infinite (a failure, never a quiet pass).
+
+    * ``terminal_velocity``: the mean settling speed over the last whole cells of travel after
+      ``params.settle_time`` (default half the run), as in ``channel_sedimentation``;
+      ``terminal_velocity_reference`` the published Re nu / d; ``terminal_velocity_error`` their
+      relative difference (the Reynolds number's, too: ``terminal_reynolds`` and
+      ``terminal_reynolds_reference``);
+    * ``drag_coefficient``, the C_D that balances the reduced weight at the measured speed,
+      against the published ``drag_coefficient_reference`` as ``drag_coefficient_error``;
+    * ``terminal_velocity_unsteadiness``: |U(second half) / U(first half) - 1| of the window,
+      each half's speed over its whole cells: how far from terminal the disc still is;
+    * ``window_travel``: diameters travelled in the window; ``bottom_clearance``: the gap below
+      the disc at the end, in diameters (the bottom brakes it within about one);
+    * ``centreline_offset`` and ``centreline_offset_mean``: the largest and the mean |x - w / 2|
+      in the window, in diameters (the symmetric state on the axis is unstable at this Reynolds
+      number: the disc wanders across the axis, docs/fluid.md)."""
+    from crosscheck.reference.fluid_data import (
+        galileo_number,
+        settling_drag_coefficient,
+        wachs_sedimentation,
+    )
+    from crosscheck.scene.shapes import Circle
+
+    fail = {"terminal_velocity_error": math.inf}
+    spec = scene.fluid
+    if params.get("benchmark", "wachs_2009") != "wachs_2009":
+        return fail
+    if len(spec.bodies) != 1 or spec.obstacles or not isinstance(spec.bodies[0].shape, Circle):
+        return fail
+    body = spec.bodies[0]
+    d = 2.0 * float(body.shape.radius)
+    ratio = body.mass / (math.pi * d * d / 4.0) / spec.density
+    nu, g = spec.kinematic_viscosity, _gravity(scene)
+    try:
+        bench = wachs_sedimentation(round(ratio, 9))
+    except KeyError:
+        return fail
+    width = spec.domain[0]
+    if (not nu or abs(width / d / bench.width_ratio - 1.0) > 1e-3
+            or abs(galileo_number(ratio, g, d, nu) / bench.galileo - 1.0) > 1e-3):
+        return fail
+    b = _body_series(record, body.name)
+    t = np.asarray(record.t, float)
+    settle = float(params.get("settle_time", t[-1] / 2.0)) if len(t) else 0.0
+    late = t >= settle - 1e-12
+    if late.sum() < 4:
+        return fail
+    tl, yl = t[late], b["y"][late]
+    u = _whole_cells_speed(tl, yl, spec.dx)
+    half = tl >= 0.5 * (tl[0] + tl[-1])
+    u1 = _whole_cells_speed(tl[~half], yl[~half], spec.dx)
+    u2 = _whole_cells_speed(tl[half], yl[half], spec.dx)
+    u_ref = bench.reynolds * nu / d
+    cd = settling_drag_coefficient(ratio, g, d, u)
+    return {"terminal_velocity": u, "terminal_velocity_reference": u_ref,
+            "terminal_velocity_error": float(abs(u / u_ref - 1.0)),
+            "terminal_reynolds": u * d / nu, "terminal_reynolds_reference": bench.reynolds,
+            "drag_coefficient": cd, "drag_coefficient_reference": bench.drag_coefficient,
+            "drag_coefficient_error": float(abs(cd / bench.drag_coefficient - 1.0)),
+            "terminal_velocity_unsteadiness": float(abs(u2 / u1 - 1.0)),
+            "window_travel": float((yl[0] - yl[-1]) / d),
+            "bottom_clearance": float((b["y"][-1] - d / 2.0) / d),
+            "centreline_offset": float(np.max(np.abs(b["x"][late] - width / 2.0)) / d),
+            "centreline_offset_mean": float(np.mean(np.abs(b["x"][late] - width / 2.0)) / d)}
 
 
 # Why the cross-engine figures of a settling disc are reported and not judged (attached to the

@@ -40,7 +40,8 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
 
 TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv",
           "faxen_1946": "faxen1946_cylinder_between_plates.csv",
-          "cylinder_drag_steady": "cylinder_drag_steady_low_re.csv"}
+          "cylinder_drag_steady": "cylinder_drag_steady_low_re.csv",
+          "wachs_2009": "wachs2009_disc_channel_sedimentation.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
     TABLES[f"ghia_1982_re{_re}_v"] = f"ghia1982_re{_re}_v_horizontal_centreline.csv"
@@ -164,3 +165,49 @@ def cylinder_drag_band(reynolds: float) -> tuple[float, float] | None:
     x = math.log(reynolds)
     xs = np.log(re)
     return (float(np.interp(x, xs, table["cd_low"])), float(np.interp(x, xs, table["cd_high"])))
+
+
+@dataclass(frozen=True)
+class SedimentationBenchmark:
+    """A published disc settling in a vertical channel (data/wachs2009_...csv): the groups
+    that fix it and its terminal state."""
+
+    density_ratio: float
+    width_ratio: float      # channel width / diameter
+    galileo: float          # sqrt((r - 1) g d^3) / nu
+    reynolds: float         # U d / nu at terminal speed
+    drag_coefficient: float  # reduced weight / (0.5 rho U^2 d)
+    source: tuple[str, ...]
+
+
+# The benchmark's own parameters (the file's header): d = 1, w = 4 d, nu = 0.008088, g = 10.
+WACHS_WIDTH_RATIO = 4.0
+WACHS_NU = 0.008088
+WACHS_G = 10.0
+
+
+def galileo_number(density_ratio: float, g: float, diameter: float, nu: float) -> float:
+    """sqrt((r - 1) g d^3) / nu: with r and w / d, what fixes a settling disc's terminal Re."""
+    return math.sqrt(abs(density_ratio - 1.0) * g * diameter ** 3) / nu
+
+
+def settling_drag_coefficient(density_ratio: float, g: float, diameter: float,
+                              speed: float) -> float:
+    """The C_D on the diameter that balances the reduced weight of a disc at ``speed``:
+    (r - 1) g pi d / (2 U^2)."""
+    return abs(density_ratio - 1.0) * g * math.pi * diameter / (2.0 * speed * speed)
+
+
+def wachs_sedimentation(density_ratio: float) -> SedimentationBenchmark:
+    """Wachs's (2009) disc in a channel four diameters wide at ``density_ratio`` (1.5 or 3)."""
+    table = load_table("wachs_2009")
+    hit = np.flatnonzero(np.isclose(table["density_ratio"], density_ratio, rtol=0, atol=1e-9))
+    if hit.size != 1:
+        raise KeyError(f"no Wachs (2009) sedimentation value at rho_s / rho = {density_ratio}; "
+                       f"known: {table['density_ratio'].tolist()}")
+    i = int(hit[0])
+    return SedimentationBenchmark(
+        density_ratio=float(density_ratio), width_ratio=WACHS_WIDTH_RATIO,
+        galileo=galileo_number(density_ratio, WACHS_G, 1.0, WACHS_NU),
+        reynolds=float(table["reynolds"][i]), drag_coefficient=float(table["drag_coefficient"][i]),
+        source=table.source)

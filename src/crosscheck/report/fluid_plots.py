@@ -198,13 +198,15 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
-    elif name == "channel_sedimentation":
+    elif name in ("channel_sedimentation", "published_sedimentation"):
         body = spec.bodies[0]
         vy = record.series[f"body_vy.{body.name}"]
         ax[0].plot(record.t, -vy, label="simulation: settling speed")
         ref = metrics.get("terminal_velocity_reference")
+        source = ("Faxen (1946), Stokes" if name == "channel_sedimentation"
+                  else "Wachs (2009), U = Re nu / d")
         if ref is not None:
-            ax[0].axhline(ref, color="k", ls="--", label=f"Faxen (1946), Stokes: {ref:.4g} m/s")
+            ax[0].axhline(ref, color="k", ls="--", label=f"{source}: {ref:.4g} m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
     elif name in SCHAFER_TUREK:

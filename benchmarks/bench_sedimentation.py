@@ -1,0 +1,268 @@
+"""A disc settling in a vertical channel four diameters wide against Wachs's (2009) published
+terminal state (issue 14, point 3): the in-house two-way coupled solver's terminal velocity,
+Reynolds number and drag coefficient at several grids, the observed order and a Richardson
+estimate of the grid-converged value.
+
+    PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation.py
+        [--runs 8 12 16 8:semi_lagrangian 8:offset 12:offset] [--tag _axis] [--markdown-only]
+
+    # the committed studies: sedimentation.json (8, 12, 16 at the step 0.02 or the CFL limit,
+    # 8:semi_lagrangian, 8:cfl0.5, 8:offset, 12:offset) and, with --tag _axis, the grid study
+    # at dt = 0.16 dx (8:dt0.02 12:dt0.01333 16:dt0.01) and the step at 8 (8:dt0.01 8:dt0.005)
+
+The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
+public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
+terminal Re = U d / nu = 259.5 and C_D = 1.785. Each run is a case TOML built here and read by
+crosscheck's own loader (``reference.solution = "published_sedimentation"``, the metric in
+compare/fluid_metrics.py), the fluid's domain 30 d tall (the disc released on the axis 3 d below
+the closed top, 12 s: it is within 1 % of its terminal speed after about 4 s, 8 d of travel, and
+the window 5-12 s covers about 15 d ending about 3 d above the bottom).
+
+A run is ``<cells per diameter>[:<variant>]``: ``semi_lagrangian`` (the plain scheme instead of
+MacCormack), ``dt<step>`` (the largest step and the sampling interval, default 0.02, which
+caps the step: CFL 0.34 at U = 2.1 and 8 cells per diameter), ``cfl<number>`` (the fluid's CFL
+number, default 1), ``offset`` (released 1 d
+off the axis as in the benchmark, in a channel 100 d tall for 45 s, the window from 16 s: the
+disc wanders across the axis, so the mean speed needs many diameters of travel); variants
+combine with ``+`` (``8:offset+dt0.01``). Each finished run is appended to
+``benchmarks/results/sedimentation.json`` (a long study survives a stop) and
+``sedimentation.md`` is written from everything in it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import time
+from pathlib import Path
+
+from crosscheck.compare.fluid_metrics import fluid_metrics
+from crosscheck.reference.fluid_data import wachs_sedimentation
+from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid.run import FluidRun
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results"
+STEM = "sedimentation"
+D = 1.0
+NU = 0.008088
+KEYS = ("terminal_velocity", "terminal_velocity_reference", "terminal_velocity_error",
+        "terminal_reynolds", "drag_coefficient", "drag_coefficient_reference",
+        "drag_coefficient_error", "terminal_velocity_unsteadiness", "window_travel",
+        "bottom_clearance", "centreline_offset", "centreline_offset_mean", "energy_lost",
+        "viscous_dissipation_ratio")
+
+
+def case_text(cells: int, integrator: str = "maccormack", length: float = 30.0,
+              duration: float = 12.0, settle: float = 5.0, offset: float = 0.0,
+              cfl: float = 1.0, ratio: float = 1.5, step: float = 0.02) -> str:
+    """The benchmark's scene as a case file: ``cells`` cells per diameter, the disc released
+    ``offset`` diameters off the axis, 3 d below the closed top of a channel ``length`` tall."""
+    width = 4.0 * D
+    return f'''[case]
+name = "fluid-sedimentation-wachs-{cells}"
+description = "A disc {ratio:g} times as dense as the fluid in a channel 4 d wide: Wachs 2009."
+tags = ["fluid", "coupling", "viscous", "sedimentation"]
+dimension = 2
+
+[run]
+duration = {duration}
+dt = {step}      # the largest step (sampling caps it): CFL {2.1 * step * cells:.2f} at U 2.1
+sample_every = {step}
+engines = ["inhouse"]
+integrators = {{ inhouse = ["{integrator}"] }}
+
+[effects]
+gravity = [0.0, -10.0]
+
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {D / 2} }} }}
+density = {1000.0 * ratio}
+position = [{width / 2 + offset * D}, {length - 3.0 * D}]
+
+[fluid]
+domain = [{width}, {length}]
+resolution = [{int(round(4 * cells))}, {int(round(length * cells))}]
+density = 1000.0
+kinematic_viscosity = {NU}
+cfl = {cfl}
+
+[reference]
+kind = "analytic"
+solution = "published_sedimentation"
+params = {{ benchmark = "wachs_2009", settle_time = {settle} }}
+'''
+
+
+def parse_run(spec: str) -> dict:
+    """``<cells>[:<variant>[+<variant>...]]`` -> the run's cells, integrator and case options."""
+    cells, _, variants = spec.partition(":")
+    run = {"cells": int(cells), "variant": variants or "maccormack", "integrator": "maccormack",
+           "kw": {}}
+    for variant in filter(None, variants.split("+")):
+        if variant == "semi_lagrangian":
+            run["integrator"] = "semi_lagrangian"
+        elif variant.startswith("dt"):
+            run["kw"]["step"] = float(variant[2:])
+        elif variant.startswith("cfl"):
+            run["kw"]["cfl"] = float(variant[3:])
+        elif variant == "offset":
+            run["kw"].update(offset=-1.0, length=100.0, duration=45.0, settle=16.0)
+        else:
+            raise SystemExit(f"unknown variant {variant!r}")
+    return run
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--runs", nargs="+", default=["8", "12", "16"])
+    ap.add_argument("--markdown-only", action="store_true")
+    ap.add_argument("--tag", default="", help="write sedimentation<tag>.{json,md} (a study "
+                    "beside the main one)")
+    args = ap.parse_args()
+    stem = f"{STEM}{args.tag}"
+    path = OUT / f"{stem}.json"
+    result = json.loads(path.read_text()) if path.exists() else {
+        "benchmark": "Wachs (2009), rho_s / rho = 1.5", "runs": []}
+    if not args.markdown_only:
+        for spec in args.runs:
+            run = parse_run(spec)
+            text = case_text(run["cells"], run["integrator"], **run["kw"])
+            scene = load_case_text(text, f"sedimentation_{spec}.toml")
+            t0 = time.perf_counter()
+            rec = FluidRun(scene, run["integrator"]).record()
+            wall = time.perf_counter() - t0
+            m = fluid_metrics(scene, rec)
+            steps = rec.meta.get("dt") or {}
+            row = {"run": spec, "cells_per_diameter": run["cells"], "variant": run["variant"],
+                   "integrator": run["integrator"],
+                   "grid": list(scene.fluid.resolution), "cfl": scene.fluid.cfl,
+                   "dt_mean": steps.get("mean"), "dt_min": steps.get("min"),
+                   "dt_max": steps.get("max"), "steps": steps.get("steps"),
+                   "duration": scene.run.duration, "wall_s": wall, "failure": rec.failure,
+                   "load": os.getloadavg()[0], "machine": platform.machine(),
+                   **{k: m.get(k) for k in KEYS}}
+            result["runs"] = [r for r in result["runs"] if r["run"] != spec] + [row]
+            OUT.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(result, indent=2))
+            (OUT / f"{stem}.md").write_text(markdown(result))
+            print(json.dumps(row), flush=True)
+    (OUT / f"{stem}.md").write_text(markdown(result))
+
+
+def _f(x, fmt="{:.4g}"):
+    return "-" if x is None else fmt.format(x)
+
+
+def richardson(hs: list[float], fs: list[float]) -> tuple[float, float] | None:
+    """The order p and limit f0 that put f0 + C h^p through three (h, f), h decreasing; None
+    when the differences change sign (no monotone convergence to extrapolate)."""
+    (h1, h2, h3), (f1, f2, f3) = hs, fs
+    if (f1 - f2) * (f2 - f3) <= 0:
+        return None
+    target = (f1 - f2) / (f2 - f3)
+    lo, hi = 0.05, 8.0
+
+    def g(p):
+        return (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - target
+
+    if g(lo) * g(hi) > 0:
+        return None
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if g(lo) * g(mid) <= 0:
+            hi = mid
+        else:
+            lo = mid
+    p = 0.5 * (lo + hi)
+    return p, f3 - (f2 - f3) / ((h2 / h3) ** p - 1.0)
+
+
+def markdown(result: dict) -> str:
+    ref = wachs_sedimentation(1.5)
+    u_ref = ref.reynolds * NU / D
+    lines = ["# Disc settling in a channel four diameters wide against Wachs (2009)", "",
+             "Written by `benchmarks/bench_sedimentation.py`. Published (one public copy, "
+             "reference/data/wachs2009_disc_channel_sedimentation.csv): Re "
+             f"{ref.reynolds:g}, C_D {ref.drag_coefficient:g}, U = Re nu / d = {u_ref:.4f}. "
+             "d = 1, w = 4, nu = 0.008088, g = 10, rho_s / rho = 1.5.", "",
+             "| run | grid | d/dx | scheme | CFL | dt mean (min-max) | U | Re | C_D | U error "
+             "| C_D error | unsteadiness | window travel (d) | clearance (d) "
+             "| off axis max / mean (d) | wall (s) | load |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in result["runs"]:
+        if r.get("failure"):
+            lines.append(f"| {r['run']} | failed: {r['failure']} |")
+            continue
+        err = None if r["terminal_velocity"] is None else r["terminal_velocity"] / u_ref - 1.0
+        cde = (None if r["drag_coefficient"] is None
+               else r["drag_coefficient"] / ref.drag_coefficient - 1.0)
+        lines.append(
+            f"| {r['run']} | {r['grid'][0]}x{r['grid'][1]} | {r['cells_per_diameter']} | "
+            f"{r['integrator']} | {r['cfl']:g} | {_f(r['dt_mean'], '{:.4f}')} "
+            f"({_f(r['dt_min'], '{:.4f}')}-{_f(r['dt_max'], '{:.4f}')}) | "
+            f"{_f(r['terminal_velocity'], '{:.4f}')} | {_f(r['terminal_reynolds'], '{:.1f}')} | "
+            f"{_f(r['drag_coefficient'], '{:.4f}')} | {_f(err, '{:+.2%}')} | "
+            f"{_f(cde, '{:+.2%}')} | {_f(r['terminal_velocity_unsteadiness'], '{:.2%}')} | "
+            f"{_f(r['window_travel'], '{:.1f}')} | {_f(r['bottom_clearance'], '{:.1f}')} | "
+            f"{_f(r['centreline_offset'], '{:.3f}')} / "
+            f"{_f(r.get('centreline_offset_mean'), '{:.3f}')}"
+            f" | {r['wall_s']:.0f} | {r['load']:.1f} |")
+    lines += _convergence(result["runs"], u_ref)
+    return "\n".join(lines) + "\n"
+
+
+FAMILIES = {
+    # the grid studies: one scheme, the step refined with the grid (dt = 0.16 dx, CFL 0.34 at
+    # the terminal speed) on the axis; released off the axis the step is 0.02 or the CFL limit
+    "released on the axis, dt = 0.16 dx": lambda r: (
+        r["variant"].startswith("dt") and "+" not in r["variant"]
+        and abs(float(r["variant"][2:]) * r["cells_per_diameter"] - 0.16) < 1e-3),
+    "released 1 d off the axis (the benchmark's release), dt <= 0.02":
+        lambda r: r["variant"] == "offset",
+}
+
+
+def _convergence(runs: list[dict], u_ref: float) -> list[str]:
+    """Per grid study: the change between successive grids, the observed order against the
+    published U (the distance to the benchmark, not to the grid limit) and the Richardson limit
+    of the three finest (which needs no reference)."""
+    out = []
+    for title, member in FAMILIES.items():
+        rows = sorted((r for r in runs if member(r) and not r.get("failure")
+                       and r["terminal_velocity"] is not None),
+                      key=lambda r: r["cells_per_diameter"])
+        if len(rows) < 2:
+            continue
+        out += ["", f"Convergence, {title}:", ""]
+        for a, b in zip(rows, rows[1:], strict=False):
+            ea = abs(a["terminal_velocity"] / u_ref - 1.0)
+            eb = abs(b["terminal_velocity"] / u_ref - 1.0)
+            ratio = b["cells_per_diameter"] / a["cells_per_diameter"]
+            order = math.log(ea / eb) / math.log(ratio) if ea > 0 and eb > 0 else math.nan
+            out.append(f"* d/dx {a['cells_per_diameter']} -> {b['cells_per_diameter']}: U "
+                       f"{a['terminal_velocity']:.4f} -> {b['terminal_velocity']:.4f} "
+                       f"(change {b['terminal_velocity'] / a['terminal_velocity'] - 1:+.2%}); "
+                       f"|error| {ea:.2%} -> {eb:.2%}, observed order against the published "
+                       f"value {order:.2f}")
+        if len(rows) >= 3:
+            last = rows[-3:]
+            hs = [1.0 / r["cells_per_diameter"] for r in last]
+            rich = richardson(hs, [r["terminal_velocity"] for r in last])
+            names = ", ".join(str(r["cells_per_diameter"]) for r in last)
+            if rich is None:
+                out.append(f"* Richardson (d/dx {names}): the changes are not monotone, no "
+                           "estimate")
+            else:
+                p, f0 = rich
+                out.append(f"* Richardson (d/dx {names}): order {p:.2f}, U -> {f0:.4f}, Re "
+                           f"{f0 * D / NU:.1f}, {f0 / u_ref - 1:+.2%} from the published value")
+    return out
+
+
+if __name__ == "__main__":
+    main()
