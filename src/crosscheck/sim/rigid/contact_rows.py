@@ -36,7 +36,7 @@ Warm starting: each step's accumulated impulses are kept with the rows' feature 
 rolling 1, rolling 2, torsion); the first three are also written to ``contacts.impulse``.
 
 Every pass is a plain sequential loop over the rows in buffer order: no parallel reduction, so
-results are bit-identical from run to run. Nothing here allocates.
+results are bit-identical from run to run. Nothing here allocates but store_rows' sort order.
 """
 
 from __future__ import annotations
