@@ -57,6 +57,16 @@ def detect_pair(sa, pa, qa, sb, pb, qb, *, b_static=False, margin=MARGIN):
             for k in range(c.n)]
 
 
+def split_edge_companion(rows):
+    """(the pair's manifold, the face contact detect3d adds after a polytope pair's one-point
+    edge contact): the first is every row with the first row's normal; a second normal may only
+    follow one edge row."""
+    first = [r for r in rows if np.array_equal(r[2], rows[0][2])]
+    rest = [r for r in rows if not np.array_equal(r[2], rows[0][2])]
+    assert not rest or len(first) == 1, (len(first), len(rest))
+    return first, rest
+
+
 def check_rows(rows, sa, pa, qa, sb, pb, qb, tol, point_tol, b_index=1, bias=0.0,
                normal_tol=None):
     """Every row consistent with the reference signed distance of A and B.
@@ -80,6 +90,17 @@ def check_rows(rows, sa, pa, qa, sb, pb, qb, tol, point_tol, b_index=1, bias=0.0
         assert rows, ref
     if not rows:
         return ref
+    rows, faces = split_edge_companion(rows)
+    for _, _, nk, p, d in faces:
+        # the face contact added after an edge contact (polytope3d.face_after_edge): one normal
+        # of its own, within the margin, no deeper than the edge point, and each point's two
+        # surface points on the surfaces (a point of one face over the other's face)
+        assert abs(np.linalg.norm(nk) - 1.0) < 1e-12
+        np.testing.assert_array_equal(nk, faces[0][2])
+        assert -MARGIN - tol <= d <= rows[0][4] + tol
+        for shape, s in ((a, 0.5), (b, -0.5)):
+            sd = float(shape.signed_distance(p + s * d * nk))
+            assert abs(sd) <= point_tol, (shape.shape.kind, d, sd)
     n = rows[0][2]
     assert abs(np.linalg.norm(n) - 1.0) < 1e-12
     deepest = max(r[4] for r in rows)
@@ -202,7 +223,9 @@ def test_box_box_face_face_edge_edge_vertex_face(offset):
     qb = quat(Rotation.from_rotvec([0, np.pi / 4, 0]))
     h = np.sqrt(0.5)
     rows = detect_pair(cube, offset, qa, cube, offset + [0.1, -0.05, 2 * h - 0.01], qb)
+    rows, faces = split_edge_companion(rows)
     (_, _, n, p, d), = rows
+    assert all(-MARGIN <= r[4] <= d for r in faces)  # (face_after_edge's, checked above)
     np.testing.assert_allclose(n, [0, 0, 1], atol=1e-9)
     assert d == pytest.approx(0.01, abs=1e-10)
     np.testing.assert_allclose(p - offset, [0.1, 0.0, h - 0.005], atol=1e-9)

@@ -55,6 +55,8 @@ from crosscheck.sim.collide.narrow3d import (
 )
 from crosscheck.sim.collide.polytope3d import (
     box_box_bounds,
+    face_after_edge,
+    is_edge_contact,
     new_polytope_scratch,
     polytope_pair,
     polytope_polytope,
@@ -278,6 +280,21 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
                                       poly_centroid, edge_verts, edge_faces, face_verts,
                                       fv_start, fv_count, wpos, wrot, ca, cb, margin, man,
                                       scratch, edge_bound)
+                    if is_edge_contact(n, m_feature):
+                        # the edge point, then the faces' contact of the same pair
+                        # (polytope3d.face_after_edge: why)
+                        if swapped:
+                            for r in range(3):
+                                m_normal[r] = -m_normal[r]
+                        k1, k2 = cls[first], cls[second]
+                        needed = emit(n, m_normal, m_point, m_depth, m_feature, body[first],
+                                      body[second], first * n_keys + second, friction[k1, k2],
+                                      restitution[k1, k2], rolling[k1, k2], torsional[k1, k2],
+                                      out_a, out_b, out_normal, out_point, out_depth, out_mu,
+                                      out_e, out_rolling, out_torsional, out_feature, needed)
+                        n = face_after_edge(polytope, poly_vert_count, poly_face_start,
+                                            poly_face_count, face_verts, fv_start, fv_count, ca,
+                                            cb, margin, man, scratch, m_depth[0])
             else:
                 n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
         if swapped and n > 0:
