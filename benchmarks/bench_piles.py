@@ -3,7 +3,7 @@ PyBullet and Pymunk on the same scenes, in one run, with each run's soundness be
 
     .venv/bin/python benchmarks/bench_piles.py [--sizes 200 1000 5000] [--repeats 3]
         [--duration 0.3] [--cap 120] [--warm-cap 900] [--accuracy-cap 300] [--peers-max-n N]
-        [--only SCENE ...] [--cells LABEL ...] [--out DIR]
+        [--only SCENE ...] [--cells LABEL ...] [--add] [--out DIR]
 
 Scenes: tests/piles/pile_scenes.py (shared with tests/piles/test_pile_scenes.py): spheres into a
 bin (200, 1000, 5000), 200 spheres onto the bare ground, 200 cubes into a bin and onto the
@@ -38,7 +38,11 @@ over the samples from crosscheck's own contact metrics (compare/contact_metrics.
 (piles_report.is_sound) means all of these, with a penetration under the committed sphere-pile
 case's bound: 1 mm, MuJoCo 5 mm (its soft contact sinks by design).
 
-Writes ``benchmarks/results/piles.json`` and ``benchmarks/results/piles.md``.
+Writes ``benchmarks/results/piles.json`` and ``benchmarks/results/piles.md``. ``--add`` (with
+``--only`` and ``--cells``) measures those cells into the scenes already in ``--out``, keeping the
+scenes' other rows: a slow model timed apart (``impulse_lcp``: minutes per scene) without
+re-timing the others. Its ratios then span two invocations; the report says which rows and
+under what load.
 """
 
 from __future__ import annotations
@@ -309,12 +313,17 @@ def main(argv=None):
                     help="peers are not run on larger piles (see PEERS_NOT_RUN)")
     ap.add_argument("--cells", nargs="*", help="labels of the cells to run (default: all)")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--add", action="store_true",
+                    help="with --only and --cells: replace only these cells' rows of the "
+                         "scenes in --out's piles.json, keeping the others")
     ap.add_argument("--merge", nargs="+", type=Path,
                     help="run nothing: combine these piles.json files (a later file's scenes "
                          "replace an earlier one's) into --out")
     args = ap.parse_args(argv)
     if args.merge:
         return merge(args.merge, args.out)
+    if args.add and not (args.only and args.cells and (args.out / "piles.json").exists()):
+        ap.error("--add needs --only, --cells and an existing piles.json in --out")
     import numba
     meta = {"recorded": time.strftime("%Y-%m-%d %H:%M:%S %Z"), "machine": platform.machine(),
             "cores": os.cpu_count(), "python": platform.python_version(),
@@ -328,13 +337,25 @@ def main(argv=None):
         # scene's ratios come from one invocation; its meta is kept per row).
         old = json.loads((args.out / "piles.json").read_text())
         names = {name for name, _ in todo}
-        rows = [r for r in old["rows"] if r["scene"] not in names]
+        if args.add:  # keep the scenes' other cells; the timed ones replace their old rows
+            rows = [r for r in old["rows"]
+                    if r["scene"] not in names or r["label"] not in args.cells]
+            meta = dict(old["meta"], added=[*old["meta"].get("added", []), meta])
+        else:
+            rows = [r for r in old["rows"] if r["scene"] not in names]
     for name, build in todo:
-        rows += run_scene(name, build, args.repeats, args.cap, args.cells,
-                          warm_cap=args.warm_cap, accuracy_cap=args.accuracy_cap,
-                          peers_max_n=args.peers_max_n)
+        new = run_scene(name, build, args.repeats, args.cap, args.cells,
+                        warm_cap=args.warm_cap, accuracy_cap=args.accuracy_cap,
+                        peers_max_n=args.peers_max_n)
+        if args.add:  # only the timed cells, in the scene's place, marked as added
+            new = [dict(r, added=True) for r in new if not r.get("not_run")]
+            at = max((i for i, r in enumerate(rows) if r["scene"] == name), default=len(rows) - 1)
+            rows[at + 1:at + 1] = new
+        else:
+            rows += new
         _write(args.out, meta, rows)  # after every scene: a stopped run keeps what it measured
-    meta["finished_load"] = os.getloadavg()[0]
+    if not args.add:
+        meta["finished_load"] = os.getloadavg()[0]
     _write(args.out, meta, rows)
 
 

@@ -93,7 +93,8 @@ def report(meta: dict, rows: list[dict]) -> str:
         peers = {r["label"]: r for r in rs if r["label"] in PEERS}
         cols = [p for p in PEERS if p in peers]
         steps = next((r["steps"] for r in rs if r.get("steps")), "?")
-        load = f"load {rs[0]['load_before']:.1f} before, {rs[0]['load_after']:.1f} after"
+        first = next((r for r in rs if not r.get("added")), rs[0])
+        load = f"load {first['load_before']:.1f} before, {first['load_after']:.1f} after"
         lines += ["", f"## {scene} (N = {rs[0]['n']}, {steps} steps; {load})", "",
                   "| engine / setting | steps/s best | median | n | sound at the end | "
                   "open + 1st step s | accuracy pass s | "
@@ -105,6 +106,12 @@ def report(meta: dict, rows: list[dict]) -> str:
                          f"{_sound(r)} | {_secs(r.get('warm_seconds'))} | "
                          f"{_secs(r.get('accuracy_wall'))} | "
                          + " | ".join(_ratio(r, peers[c]) for c in cols) + " |")
+        added = [r for r in rs if r.get("added")]
+        if added:
+            lines += ["", "Timed in a later invocation (`bench_piles.py --add`), so their ratios "
+                      "span two runs: " + "; ".join(
+                          f"{r['label']} ({r['recorded']}, load {r['load_before']:.1f} before, "
+                          f"{r['load_after']:.1f} after)" for r in added) + "."]
     lines += _summary(by_scene) + _scaling(rows) + _targets(by_scene)
     return "\n".join(lines) + "\n"
 
