@@ -80,8 +80,10 @@ def test_pair_table_by_material_class_uses_the_pair_rule():
                ground=([0, 0, 1], 0.0), ground_material=RUBBER,
                overrides=[("s0", "ground", {"friction": 0.9}), ("s1", "s2", {"collide": False})])
     g = compile_geometry(sc)
-    # three materials, plus a class each for the named s0, s1, s2 and ground
-    assert g.pair_friction.shape == (7, 7)
+    # the bodies' three materials, the wall (ice, but fixed: never a body's class), and a class
+    # each for the named s0, s1, s2 and ground
+    assert g.pair_friction.shape == (8, 8)
+    assert g.material_class[5000] not in {g.material_class[i] for i in range(5000)}
     names = [b.name for b in sc.bodies] + ["wall"]
     for i, j in [(0, 3), (3, 4), (4, 5), (1, 2), (3, 5000), (0, 5000), (6, 9)]:
         pm = pair_material(sc, names[i], names[j])
