@@ -13,10 +13,11 @@ estimate of the grid-converged value.
 The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
 public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
 terminal Re = U d / nu = 259.5 and C_D = 1.785. Each run is a case TOML built here and read by
-crosscheck's own loader (``reference.solution = "published_sedimentation"``, the metric in
-compare/fluid_metrics.py), the fluid's domain 30 d tall (the disc released on the axis 3 d below
-the closed top, 12 s: it is within 1 % of its terminal speed after about 4 s, 8 d of travel, and
-the window 5-12 s covers about 15 d ending about 3 d above the bottom).
+crosscheck's own loader (``reference.table = "wachs_2009"``, the metric
+``published_sedimentation`` in compare/fluid_metrics.py), the fluid's domain 30 d tall (the disc
+released on the axis 3 d below the closed top, 12 s: it is within 1 % of its terminal speed after
+about 4 s, 8 d of travel, and the window 5-12 s covers about 15 d ending about 3 d above the
+bottom).
 
 A run is ``<cells per diameter>[:<variant>]``: ``semi_lagrangian`` (the plain scheme instead of
 MacCormack), ``dt<step>`` (the largest step and the sampling interval, default 0.02, which
@@ -92,9 +93,9 @@ kinematic_viscosity = {NU}
 cfl = {cfl}
 
 [reference]
-kind = "analytic"
-solution = "published_sedimentation"
-params = {{ benchmark = "wachs_2009", settle_time = {settle} }}
+kind = "table"
+table = "wachs_2009"
+params = {{ settle_time = {settle} }}
 '''
 
 

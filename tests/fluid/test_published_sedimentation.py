@@ -9,10 +9,13 @@ force on the body or its viscous exchange would move it far outside the toleranc
 
 import dataclasses
 import math
+from pathlib import Path
 
 import pytest
 
 from crosscheck.compare.fluid_metrics import fluid_metrics, published_sedimentation
+from crosscheck.errors import CaseError
+from crosscheck.scene.loader import load_case_text
 
 
 def test_the_disc_settles_at_the_published_terminal_speed(runs):
@@ -48,15 +51,32 @@ def _scene(fluid_case, **fluid):
     {"density": 1200.0},                # rho_s / rho = 1.25: not published
 ])
 def test_a_scene_that_is_not_the_benchmark_is_not_measured(fluid_case, change):
-    """The published number belongs to one set of groups (w / d, r, Ga): any other scene gets an
-    infinite error (a failure), never a comparison with the wrong benchmark. The scene is
-    refused before the record is read."""
+    """The published number belongs to one set of groups (w / d, r, Ga). A scene built past the
+    loader (as here) that is another gets an infinite error (a failure), never a comparison
+    with the wrong benchmark; it is refused before the record is read."""
     scene = _scene(fluid_case, **change)
-    out = published_sedimentation(scene, record=None, params={"benchmark": "wachs_2009"})
+    out = published_sedimentation(scene, record=None, params={})
     assert out == {"terminal_velocity_error": math.inf}
 
 
-def test_an_unknown_benchmark_is_not_measured(fluid_case):
-    scene = fluid_case("sedimentation_wachs", duration=0.02)
-    out = published_sedimentation(scene, record=None, params={"benchmark": "glowinski_2001"})
-    assert out == {"terminal_velocity_error": math.inf}
+CASE = Path(__file__).resolve().parents[2] / "cases" / "fluid" / "sedimentation_wachs.toml"
+
+
+@pytest.mark.parametrize(("edits", "expected"), [
+    ({"domain = [4.0,": "domain = [5.0,", "resolution = [32,": "resolution = [40,"},
+     "4 diameters wide"),
+    ({"kinematic_viscosity = 0.008088": "kinematic_viscosity = 0.01"}, "Galileo number"),
+    ({"density = 1500.0": "density = 1250.0"}, "density ratio"),
+    ({'table = "wachs_2009"': 'table = "wachs_2010"'}, "a published table crosscheck ships"),
+])
+def test_the_loader_refuses_a_case_that_is_not_the_benchmark(edits, expected):
+    """A case naming the benchmark must be it: the loader says which group is off, in the
+    file and field ``reference.table``, before any cell runs."""
+    text = CASE.read_text()
+    for old, new in edits.items():
+        assert old in text
+        text = text.replace(old, new)
+    with pytest.raises(CaseError) as exc:
+        load_case_text(text, CASE.name, base_dir=CASE.parent)
+    assert exc.value.field == "reference.table" and expected in str(exc.value)
+    assert CASE.name in str(exc.value)

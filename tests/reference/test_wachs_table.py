@@ -11,12 +11,13 @@ import math
 import pytest
 
 from crosscheck.reference.fluid_data import (
-    WACHS_G,
-    WACHS_NU,
+    WACHS_2009,
     galileo_number,
     settling_drag_coefficient,
     wachs_sedimentation,
 )
+
+WACHS_G, WACHS_NU = WACHS_2009["g"], WACHS_2009["nu"]
 
 
 @pytest.mark.parametrize("ratio", [1.5, 3.0])
@@ -37,6 +38,13 @@ def test_the_benchmark_groups():
     # (r - 1) four times as large at r = 3: Ga doubles
     assert math.isclose(galileo_number(3.0, WACHS_G, 1.0, WACHS_NU), 2.0 * b.galileo)
     assert any("Basilisk" in line for line in b.source)   # the copy is named in the header
+
+
+def test_the_loader_s_catalogue_is_the_file_s_rows():
+    """The loader checks a case against WACHS_2009 (below reference/, without reading the file):
+    its density ratios must be the file's rows."""
+    for r in WACHS_2009["density_ratios"]:
+        assert wachs_sedimentation(r).density_ratio == r
 
 
 def test_an_unpublished_density_ratio_is_refused():

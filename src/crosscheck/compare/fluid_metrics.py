@@ -92,7 +92,7 @@ def fluid_metrics(scene: Any, record: Any) -> dict[str, float]:
         out.update(channel_sedimentation(scene, record, params))
     elif name == "disc_settling":
         out.update(disc_settling(scene, record, params))
-    elif name == "published_sedimentation":
+    elif name == "wachs_2009":
         out.update(published_sedimentation(scene, record, params))
     if "total_energy" in s and "viscous_dissipation" in s:
         out.update(energy_audit(record, float(params.get("audit_start",
@@ -526,11 +526,12 @@ def channel_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, fl
 
 def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, float]:
     """A disc settling in a vertical channel against a published benchmark's terminal state
-    (``params.benchmark``, only ``"wachs_2009"``: reference/data/wachs2009_...csv, Wachs 2009,
-    the channel four diameters wide, at the scene's density ratio 1.5 or 3). The scene must be
-    the benchmark's: one circle, no obstacles, the domain's width w / d and the Galileo number
-    sqrt((r - 1) g d^3) / nu equal to the published ones (1e-3); otherwise nothing is measured and
-    ``terminal_velocity_error`` is infinite (a failure, never a quiet pass).
+    (``reference.table = "wachs_2009"``: reference/data/wachs2009_...csv, Wachs 2009, the channel
+    four diameters wide, at the scene's density ratio 1.5 or 3). The loader refuses a case that is
+    not the benchmark (``scene.published_table.wachs_channel``); a scene built otherwise that is
+    not (one circle, no obstacles, the width w / d and the Galileo number sqrt((r - 1) g d^3) / nu
+    the published ones to 1e-3) gets an infinite ``terminal_velocity_error`` (a failure, never a
+    quiet pass).
 
     * ``terminal_velocity``: the mean settling speed over the last whole cells of travel after
       ``params.settle_time`` (default half the run), as in ``channel_sedimentation``;
@@ -555,8 +556,6 @@ def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, 
 
     fail = {"terminal_velocity_error": math.inf}
     spec = scene.fluid
-    if params.get("benchmark", "wachs_2009") != "wachs_2009":
-        return fail
     if len(spec.bodies) != 1 or spec.obstacles or not isinstance(spec.bodies[0].shape, Circle):
         return fail
     body = spec.bodies[0]

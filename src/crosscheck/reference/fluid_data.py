@@ -35,6 +35,8 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
     GHIA_REYNOLDS,
     REYNOLDS_RTOL,
     SCHAFER_TUREK,
+    WACHS_2009,
+    galileo_number,
     ghia_reynolds,
 )
 
@@ -180,17 +182,6 @@ class SedimentationBenchmark:
     source: tuple[str, ...]
 
 
-# The benchmark's own parameters (the file's header): d = 1, w = 4 d, nu = 0.008088, g = 10.
-WACHS_WIDTH_RATIO = 4.0
-WACHS_NU = 0.008088
-WACHS_G = 10.0
-
-
-def galileo_number(density_ratio: float, g: float, diameter: float, nu: float) -> float:
-    """sqrt((r - 1) g d^3) / nu: with r and w / d, what fixes a settling disc's terminal Re."""
-    return math.sqrt(abs(density_ratio - 1.0) * g * diameter ** 3) / nu
-
-
 def settling_drag_coefficient(density_ratio: float, g: float, diameter: float,
                               speed: float) -> float:
     """The C_D on the diameter that balances the reduced weight of a disc at ``speed``:
@@ -207,7 +198,8 @@ def wachs_sedimentation(density_ratio: float) -> SedimentationBenchmark:
                        f"known: {table['density_ratio'].tolist()}")
     i = int(hit[0])
     return SedimentationBenchmark(
-        density_ratio=float(density_ratio), width_ratio=WACHS_WIDTH_RATIO,
-        galileo=galileo_number(density_ratio, WACHS_G, 1.0, WACHS_NU),
+        density_ratio=float(density_ratio), width_ratio=WACHS_2009["width_ratio"],
+        galileo=galileo_number(density_ratio, WACHS_2009["g"], WACHS_2009["diameter"],
+                               WACHS_2009["nu"]),
         reynolds=float(table["reynolds"][i]), drag_coefficient=float(table["drag_coefficient"][i]),
         source=table.source)

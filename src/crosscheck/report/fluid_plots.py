@@ -198,7 +198,7 @@ def plot_validation(scene: Any, record: Any, outdir: Path) -> Path | None:
         ax[0].axhline(1e-4, color="r", ls="--", label="1e-4 m/s")
         ax[0].set_xlabel("t (s)")
         ax[0].set_ylabel("m/s")
-    elif name in ("channel_sedimentation", "published_sedimentation"):
+    elif name in ("channel_sedimentation", "wachs_2009"):
         body = spec.bodies[0]
         vy = record.series[f"body_vy.{body.name}"]
         ax[0].plot(record.t, -vy, label="simulation: settling speed")

@@ -11,6 +11,7 @@ the scene.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from crosscheck.errors import CaseError
@@ -41,6 +42,16 @@ CASE_TABLES.update({
     "schafer_turek_2d2": "DFG benchmark 2D-2, channel flow past a cylinder at Re = 100 "
                          "(periodic): maximum drag and lift, Strouhal number",
 })
+# Wachs (2009): a disc settling in a closed vertical channel four diameters wide (the published
+# terminal Reynolds number and drag coefficient at two density ratios, reference/data/
+# wachs2009_disc_channel_sedimentation.csv). With w / d and r = rho_s / rho, the Galileo number
+# sqrt((r - 1) g d^3) / nu fixes the terminal state; the benchmark's d = 1, g = 10 and nu =
+# 0.008088 give it. The case is accepted in any units with the same groups, to WACHS_RTOL.
+WACHS_2009 = {"width_ratio": 4.0, "diameter": 1.0, "g": 10.0, "nu": 0.008088,
+              "density_ratios": (1.5, 3.0)}
+WACHS_RTOL = 1e-3
+CASE_TABLES["wachs_2009"] = ("Wachs (2009): terminal settling speed and drag of a disc in a closed "
+                             "vertical channel four diameters wide (rho_s / rho = 1.5 or 3)")
 # The DFG channel in cylinder diameters: 22 D long, 4.1 D high, the centre 2 D from the inflow
 # side and from the bottom wall. Exact inputs: only round-off is forgiven.
 DFG_GEOMETRY_RTOL = 1e-6
@@ -80,7 +91,53 @@ def check_published_table(f: Fields, name: str, fluid: Any, gravity: Any) -> Non
     if name in SCHAFER_TUREK:
         dfg_cylinder(f, name, fluid)
         return
+    if name == "wachs_2009":
+        wachs_channel(f, fluid, gravity)
+        return
     cavity_reynolds(f, name, fluid)
+
+
+def galileo_number(density_ratio: float, g: float, diameter: float, nu: float) -> float:
+    """sqrt(|r - 1| g d^3) / nu: with r and w / d, what fixes a settling disc's terminal Re."""
+    return math.sqrt(abs(density_ratio - 1.0) * g * diameter ** 3) / nu
+
+
+def wachs_channel(f: Fields, fluid: Any, gravity: Any) -> float:
+    """The density ratio of a case that is Wachs's (2009) benchmark, after checking it is: one
+    coupled circle, no obstacles, no free surface, a viscous fluid under gravity, the channel
+    four diameters wide, a published density ratio and the benchmark's Galileo number."""
+
+    def refuse(expected: str, got: Any) -> CaseError:
+        return f.error("table", f"a case wachs_2009 describes: {expected}", got)
+
+    bodies = fluid.bodies
+    if len(bodies) != 1 or getattr(bodies[0].shape, "kind", None) != "circle":
+        raise refuse("exactly one [[bodies]] entry, a circle (the settling disc)",
+                     f"{len(bodies)} bodies" if len(bodies) != 1 else bodies[0].shape.kind)
+    if fluid.obstacles:
+        raise refuse("a channel with no obstacles", f"{len(fluid.obstacles)} obstacles")
+    if fluid.has_surface:
+        raise refuse("a closed channel full of fluid (no fluid.initial)", "a free surface")
+    g = 0.0 if gravity is None else math.sqrt(sum(float(c) ** 2 for c in gravity))
+    nu = fluid.kinematic_viscosity
+    if g == 0.0 or not nu:
+        raise refuse("effects.gravity and a viscous fluid", f"gravity {g:g}, nu {nu!r}")
+    disc = bodies[0]
+    d = 2.0 * float(disc.shape.radius)
+    ratio = float(disc.mass) / (math.pi * d * d / 4.0) / fluid.density
+    known = WACHS_2009["density_ratios"]
+    if not any(abs(ratio / r - 1.0) <= WACHS_RTOL for r in known):
+        raise refuse(f"a disc of density ratio rho_s / rho in {list(known)}", f"{ratio:.6g}")
+    width = fluid.domain[0] / d
+    if abs(width / WACHS_2009["width_ratio"] - 1.0) > WACHS_RTOL:
+        raise refuse(f"a channel {WACHS_2009['width_ratio']:g} diameters wide "
+                     "(fluid.domain[0] / the disc's diameter)", f"{width:.6g}")
+    ga = galileo_number(ratio, g, d, nu)
+    want = galileo_number(ratio, WACHS_2009["g"], WACHS_2009["diameter"], WACHS_2009["nu"])
+    if abs(ga / want - 1.0) > WACHS_RTOL:
+        raise refuse(f"the benchmark's Galileo number sqrt((r - 1) g d^3) / nu = {want:.6g} "
+                     "(d = 1, g = 10, nu = 0.008088)", f"{ga:.6g}")
+    return ratio
 
 
 def dfg_cylinder(f: Fields, name: str, fluid: Any) -> tuple[Any, str, float]:
