@@ -6,6 +6,9 @@ refill ``contacts`` (sim/collide/contacts.py) from the bodies' state: ``x`` the 
 order (body-body and body-static pairs in broad-phase order, then body-ground), so the same state
 gives bit-identical rows. Row orientation: ``a`` is always a body (the lower index of two
 bodies), ``b`` the other body or -1 for a static or the ground; the normal points from a to b.
+``collide_pair3d(geometry, x, q, ca, cb, contacts)`` fills the buffer with one pair's rows alone,
+by the same compiled loop (``_pairs3d``) detect3d runs over the broad phase's pairs, so a pair
+tested alone gets exactly the rows detect3d gives it (an edge contact's face rows included).
 
 ``needed`` counts every contact found, ``count = min(needed, capacity)``: when ``needed >
 capacity`` the rows past the capacity are lost and the caller must fail the step (the adapter
@@ -173,27 +176,19 @@ def box_box(geom, size, wpos, wrot, ca, cb, margin, man, scratch):
     return polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, edge + tol)
 
 
-@njit(**JIT)
-def collide_pair3d(geom, wpos, wrot, ca, cb, margin, man, scratch, gs, lam):
-    """Manifold of colliders (ca, cb), normal from ca to cb (outside the hot loop: tests)."""
-    kind = geom.kind
-    ka, kb = kind[ca], kind[cb]
-    swapped = ka > kb
-    if swapped:
-        ca, cb = cb, ca
-        ka, kb = kb, ka
-    n = closed_form_pair3d(ka, kb, geom.size, wpos, wrot, ca, cb, margin, man)
-    if n < 0:
-        if ka == BOX and kb == BOX:
-            n = box_box(geom, geom.size, wpos, wrot, ca, cb, margin, man, scratch)
-        elif (ka == BOX or ka == HULL) and (kb == BOX or kb == HULL):
-            n = polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, np.inf)
-        else:
-            n = convex_convex(geom, wpos, wrot, ca, cb, margin, man, gs, lam, scratch)
-    if swapped and n > 0:
-        for r in range(3):
-            man.normal[r] = -man.normal[r]
-    return n
+@njit(**INLINE)
+def _scratch3d(geom):
+    """The narrow phase's scratch for one detection: (manifold, polytope scratch, GJK/EPA
+    scratch, lam)."""
+    man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
+                   np.zeros(MAX_CANDIDATES, np.int64))
+    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces, geom.max_poly_edges,
+                                   2 * max(geom.max_face_verts, CAP_POINTS) + 4)
+    gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
+                    np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
+                    np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),
+                    np.zeros((3 * EPA_MAX_FACES, 2), np.int64))
+    return man, scratch, gs, np.zeros(4)
 
 
 @njit(**JIT)
@@ -207,35 +202,51 @@ def detect3d(geom, x, q, contacts):
     hi = np.empty((c, 3))
     world_poses3d(geom, x, q, wpos, wrot)
     bounding_boxes3d(geom, wpos, wrot, 0.5 * margin, lo, hi)
-    man = Manifold(np.zeros(3), np.zeros((MAX_CANDIDATES, 3)), np.zeros(MAX_CANDIDATES),
-                   np.zeros(MAX_CANDIDATES, np.int64))
-    scratch = new_polytope_scratch(geom.max_poly_verts, geom.max_poly_faces, geom.max_poly_edges,
-                                   2 * max(geom.max_face_verts, CAP_POINTS) + 4)
-    gs = GjkScratch(np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_VERTS, 3)),
-                    np.zeros((EPA_MAX_VERTS, 3)), np.zeros((EPA_MAX_FACES, 3), np.int64),
-                    np.zeros((EPA_MAX_FACES, 4)), np.zeros(EPA_MAX_FACES, np.bool_),
-                    np.zeros((3 * EPA_MAX_FACES, 2), np.int64))
-    lam = np.zeros(4)
+    man, scratch, gs, lam = _scratch3d(geom)
     pairs, n_pairs = broad_phase(geom, lo, hi, np.empty((PAIRS_PER_COLLIDER * c + 16, 2),
                                                          np.int64))
-    needed = _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi, scratch,
-                                 gs, lam)
+    needed = _pairs3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, scratch, gs, lam)
+    needed = _planes3d(geom, contacts, man, wpos, wrot, lo, hi, needed)
     contacts.needed[0] = needed
     contacts.count[0] = min(needed, contacts.a.shape[0])
     return needed
 
 
 @njit(**JIT)
-def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi, scratch, gs,
-                        lam):
-    """The narrow phase over the broad phase's pairs, then every body against every plane; rows
-    appended in that order. Returns the rows needed. (_pairs_and_planes2d is the same loop with
-    the 2D routines.)"""
+def collide_pair3d(geom, x, q, ca, cb, contacts):
+    """Fill ``contacts`` with the rows of colliders ``ca`` and ``cb`` alone at the state (x, q),
+    exactly as :func:`detect3d` writes that pair's rows (the same compiled loop, ``_pairs3d``, on a
+    one-pair list; no broad phase, no planes): the pair's manifold, and after a polytope pair's
+    edge contact the face contact of the same pair (polytope3d.face_after_edge), each row
+    oriented as detect3d orients it (a the body of lower index, the normal from a to b).
+    Returns the rows needed. For tests and tools, outside the hot loop."""
+    c = geom.kind.shape[0]
+    wpos = np.empty((c, 3))
+    wrot = np.empty((c, 3, 3))
+    world_poses3d(geom, x, q, wpos, wrot)
+    man, scratch, gs, lam = _scratch3d(geom)
+    pairs = np.empty((1, 2), np.int64)
+    pairs[0, 0] = ca
+    pairs[0, 1] = cb
+    # (n_pairs an int64 as the broad phase's count, not the literal 1: a literal argument would
+    # compile _pairs3d a second time, for this signature)
+    needed = _pairs3d(geom, contacts, man, pairs, pairs.shape[0], wpos, wrot, scratch, gs, lam)
+    contacts.needed[0] = needed
+    contacts.count[0] = min(needed, contacts.a.shape[0])
+    return needed
+
+
+# The one code path of a pair's rows: detect3d runs it over the broad phase's pairs,
+# collide_pair3d over one pair.
+@njit(**JIT)
+def _pairs3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, scratch, gs, lam):
+    """The narrow phase over ``pairs[:n_pairs]``, rows from the buffer's first on: per
+    pair its manifold, and after a polytope pair's one-point edge contact the faces' contact of
+    the same pair (polytope3d.face_after_edge). Returns the rows needed. (_pairs_and_planes2d is
+    the same loop with the 2D routines.)"""
     body, cls = geom.body, geom.material_class
     friction, restitution = geom.pair_friction, geom.pair_restitution
     rolling, torsional = geom.pair_rolling_friction, geom.pair_torsional_friction
-    collide, plane_class = geom.pair_collide, geom.plane_class
-    plane_normal, plane_offset = geom.plane_normal, geom.plane_offset
     m_normal, m_point, m_depth, m_feature = man.normal, man.point, man.depth, man.feature
     out_a, out_b, out_normal, out_point = contacts.a, contacts.b, contacts.normal, contacts.point
     out_depth, out_mu, out_e = contacts.depth, contacts.friction, contacts.restitution
@@ -243,8 +254,7 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
     out_feature = contacts.feature
     margin = geom.margin
     c = body.shape[0]
-    n_planes = plane_class.shape[0]
-    n_keys = c + n_planes
+    n_keys = c + geom.plane_class.shape[0]
     needed = 0
     kind, size = geom.kind, geom.size
     vertices, face_normal, face_offset = geom.vertices, geom.face_normal, geom.face_offset
@@ -307,6 +317,28 @@ def _pairs_and_planes3d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi,
                           rolling[k1, k2], torsional[k1, k2], out_a, out_b, out_normal,
                           out_point, out_depth, out_mu, out_e, out_rolling, out_torsional,
                           out_feature, needed)
+    return needed
+
+
+@njit(**JIT)
+def _planes3d(geom, contacts, man, wpos, wrot, lo, hi, needed):
+    """Every body against every plane, rows appended after the first ``needed``; returns the
+    rows needed."""
+    body, cls = geom.body, geom.material_class
+    friction, restitution = geom.pair_friction, geom.pair_restitution
+    rolling, torsional = geom.pair_rolling_friction, geom.pair_torsional_friction
+    collide, plane_class = geom.pair_collide, geom.plane_class
+    plane_normal, plane_offset = geom.plane_normal, geom.plane_offset
+    m_normal, m_point, m_depth, m_feature = man.normal, man.point, man.depth, man.feature
+    out_a, out_b, out_normal, out_point = contacts.a, contacts.b, contacts.normal, contacts.point
+    out_depth, out_mu, out_e = contacts.depth, contacts.friction, contacts.restitution
+    out_rolling, out_torsional = contacts.rolling_friction, contacts.torsional_friction
+    out_feature = contacts.feature
+    margin = geom.margin
+    c = body.shape[0]
+    n_planes = plane_class.shape[0]
+    n_keys = c + n_planes
+    kind, size = geom.kind, geom.size
     for g in range(n_planes):
         kg = plane_class[g]
         for b in range(geom.n_bodies):
