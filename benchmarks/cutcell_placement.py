@@ -2,19 +2,18 @@
 
     .venv/bin/python benchmarks/cutcell_placement.py [--cells 10 20 40] [--offsets 0 0.25 0.5]
 
-A flow that only the projection shapes: a uniform stream (U = 1, inviscid) from the inflow side
-of a channel 10 D long and 5 D wide past a cylinder of diameter D = 0.1 m in its middle, projected
-once (tolerance 1e-12; ``sim/fluid/potential.py``) by the same cut-cell projection the fluid
-steps use (``pressure.project``:
-the face-fraction weights of Batty, Bertails and Bridson 2007 and Ng, Min and Gibou 2009). The
-result is the discrete potential flow. Its disturbance energy ``E = 1/2 integral |u - U e_x|^2``
-(each face weighted by its open fraction) is, for the exact potential flow, half the added mass
-times U^2 (Lamb, Hydrodynamics, sec. 72; rho pi r^2 for a cylinder in an unbounded fluid, a few
-per cent more between the channel's walls): it does not depend on where the cylinder sits along
-the channel to within the channel's symmetry, so any spread of ``E`` over offsets of a fraction of
-a cell is the discretisation's, and its decrease with the grid is the projection's order at the
-wall. The cylinder is moved downstream by ``offset`` cells (0: its four extreme points on grid
-lines, the DFG study's placement).
+A flow that only the projection shapes: a uniform stream (U = 1, inviscid) from the inflow side of a
+channel 10 D long and 5 D wide past a cylinder of diameter D = 0.1 m in its middle, projected once
+(tolerance 1e-12; ``sim/fluid/potential.py``) by the same cut-cell projection the fluid steps use
+(``pressure.project``: the face-fraction weights of Batty, Bertails and Bridson 2007 and Ng, Min and
+Gibou 2009). The result is the discrete potential flow. Its disturbance energy ``E = 1/2 integral |u
+- U e_x|^2`` (each face weighted by its open fraction) is, for the exact potential flow, half the
+added mass times U^2 (rho pi r^2 for a cylinder in an unbounded fluid, the classical potential-flow
+result; a few per cent more between the channel's walls): it does not depend on where the cylinder
+sits along the channel to within the channel's symmetry, so any spread of ``E`` over offsets of a
+fraction of a cell is the discretisation's, and its decrease with the grid is the projection's order
+at the wall. The cylinder is moved downstream by ``offset`` cells (0: its four extreme points on
+grid lines, the DFG study's placement).
 
 Results go to ``benchmarks/results/cutcell_placement.{json,md}``. It takes a few seconds.
 """

@@ -326,12 +326,12 @@ def _stream_past_cylinder(width, height, cells, offset):
 
 def test_potential_flow_past_a_cylinder_has_the_added_mass_of_a_cylinder():
     """Half the added mass rho pi r^2 times U^2 is the disturbance energy of the exact potential
-    flow past a circle (Lamb, sec. 72); walls and the inflow 20 D away add about 0.1 %. At 10
-    cells across, wherever the grid cuts the circle (offsets 0, 1/4, 1/2 of a cell), the
-    projection's value is within 3.5 % (measured: +2.9 % aligned, -1.3 % at half a cell:
-    the projection's wall error, order 1.5, benchmarks/results/cutcell_placement.md) and the
-    offsets' mean within 1 % (measured +0.5 %). Faces rounded to open or closed (a staircase)
-    give 1.146, 1.038, 1.062 and fail."""
+    flow past a circle (the classical result); walls and the inflow 20 D away add about
+    0.1 %. At 10 cells across, wherever the grid cuts the circle (offsets 0, 1/4, 1/2 of a cell),
+    the projection's value is within 3.5 % (measured: +2.9 % aligned, -1.3 % at half a cell: the
+    projection's wall error, order 1.5, benchmarks/results/cutcell_placement.md) and the offsets'
+    mean within 1 % (measured +0.5 %). Faces rounded to open or closed (a staircase) give 1.146,
+    1.038, 1.062 and fail."""
     values = [_stream_past_cylinder(4.0, 4.0, 10, f) for f in (0.0, 0.25, 0.5)]
     assert all(abs(e - 1.0) < 0.035 for e in values), values
     assert abs(sum(values) / 3 - 1.0) < 0.01, values

@@ -136,9 +136,9 @@ def faxen_channel_lambda(k: float) -> float:
     """Faxen's (1946) wall factor ``Lambda(k)`` of a circular cylinder of radius ``a`` moving slowly
     along the centreline between plane walls ``2 h`` apart, ``k = a / h``: the Stokes drag per
     unit length is ``4 pi mu U / Lambda(k)`` (data/faxen1946_cylinder_between_plates.csv, with its
-    sources: the coefficients through ``k^4`` agree with one public copy, the ``k^6`` and ``k^8``
-    terms, 0.09 % of Lambda at k = 0.25, with none found). The series is for ``k`` up to about
-    0.5."""
+    sources: two public copies, the constant and the ``k^2`` coefficient also derived from the
+    Stokes equations in tests/reference/test_faxen_table.py; the ``k^6`` and ``k^8`` terms, 0.09 %
+    of Lambda at k = 0.25, on one copy). The series is for ``k`` up to about 0.5."""
     if not 0.0 < k < 1.0:
         raise ValueError(f"k = a / h must be in (0, 1), got {k}")
     table = load_table("faxen_1946")

@@ -1,11 +1,11 @@
 """The discrete potential flow past a scene's obstacles: a uniform stream projected once.
 
-With no viscosity and no time step, one projection of the uniform stream ``U e_x`` (the solid
-faces at the obstacles' velocity, zero) is the discrete potential flow past the obstacles: the
-field of least kinetic energy that is divergence free with no flow through them. Its
-disturbance energy ``E = 1/2 integral |u - U e_x|^2 dA`` is, for the exact flow, half the added
-mass times ``U^2`` (Lamb, Hydrodynamics, sec. 72: ``rho pi r^2`` for a circle in an unbounded
-fluid). It measures the projection at the wall alone: ``benchmarks/cutcell_placement.py`` and
+With no viscosity and no time step, one projection of the uniform stream ``U e_x`` (the solid faces
+at the obstacles' velocity, zero) is the discrete potential flow past the obstacles: the field of
+least kinetic energy that is divergence free with no flow through them. Its disturbance energy ``E =
+1/2 integral |u - U e_x|^2 dA`` is, for the exact flow, half the added mass times ``U^2`` (``rho pi
+r^2`` for a circle in an unbounded fluid, the classical potential-flow result). It measures the
+projection at the wall alone: ``benchmarks/cutcell_placement.py`` and
 ``tests/fluid/test_cutcell.py`` move an obstacle by fractions of a cell, which leaves the exact
 ``E`` unchanged, and read the spread.
 """
