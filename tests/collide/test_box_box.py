@@ -54,27 +54,37 @@ class Pair:
                               0, 1)
 
 
-def sat_separation(half_a, ra, half_b, rb, t):
-    """Largest separation over the 15 axes (numpy, for placing pairs at a chosen gap)."""
+def separating_axes(half_a, ra, half_b, rb):
+    """The 15 SAT axes (face normals of both, then the non-degenerate cross axes) with the sum of
+    both boxes' projected half extents on each (numpy, for placing pairs at a chosen gap)."""
     axes = [ra[:, i] for i in range(3)] + [rb[:, j] for j in range(3)]
     for i in range(3):
         for j in range(3):
             c = np.cross(ra[:, i], rb[:, j])
             if np.linalg.norm(c) > 1e-6:
                 axes.append(c / np.linalg.norm(c))
+    return [(u, np.sum(half_a * np.abs(ra.T @ u)), np.sum(half_b * np.abs(rb.T @ u)))
+            for u in axes]
+
+
+def sat_separation(half_a, ra, half_b, rb, t, axes=None):
+    """Largest separation over the 15 axes at centre offset t (``axes``: separating_axes of the
+    same boxes, computed once for many offsets; the same numbers either way)."""
     best = -np.inf
-    for u in axes:
-        s = (abs(t @ u) - np.sum(half_a * np.abs(ra.T @ u)) - np.sum(half_b * np.abs(rb.T @ u)))
+    for u, extent_a, extent_b in axes or separating_axes(half_a, ra, half_b, rb):
+        s = (abs(t @ u) - extent_a - extent_b)
         best = max(best, s)
     return best
 
 
 def place(pair, ra, rb, u, gap):
-    """Distance along u at which the 15-axis separation is ``gap`` (bisection)."""
+    """Distance along u at which the 15-axis separation is ``gap`` (bisection; the axes and the
+    boxes' extents on them do not depend on the distance and are computed once)."""
+    axes = separating_axes(pair.half[0], ra, pair.half[1], rb)
     lo, hi = 0.0, 2.0 * (np.linalg.norm(pair.half[0]) + np.linalg.norm(pair.half[1])) + 1.0
     for _ in range(80):
         mid = 0.5 * (lo + hi)
-        if sat_separation(pair.half[0], ra, pair.half[1], rb, mid * u) > gap:
+        if sat_separation(pair.half[0], ra, pair.half[1], rb, mid * u, axes) > gap:
             hi = mid
         else:
             lo = mid
