@@ -406,7 +406,7 @@ def detect2d(geom, x, angle, contacts):
 
 @njit(**JIT)
 def _pairs_and_planes2d(geom, contacts, man, pairs, n_pairs, wpos, wrot, lo, hi):
-    """_pairs_and_planes3d with the 2D routines."""
+    """_pairs3d and _planes3d in one loop, with the 2D routines."""
     body, cls = geom.body, geom.material_class
     friction, restitution = geom.pair_friction, geom.pair_restitution
     rolling, torsional = geom.pair_rolling_friction, geom.pair_torsional_friction
