@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.potential import disturbance_energy, projected_stream
+from crosscheck.sim.fluid.potential import disturbance_energy, far_window, projected_stream
 
 OUT = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 RADIUS = 0.05
@@ -66,14 +66,6 @@ obstacles = [{{ name = "cylinder", circle = {{ center = [0.5, 0.25], radius = {r
 """
 
 
-def far_window(cx: float, cy: float):
-    """0 within 1.5 r of the centre, 1 beyond 4.5 r, the quintic step between."""
-    def weight(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        t = np.clip((np.hypot(x - cx, y - cy) - 1.5 * RADIUS) / (3.0 * RADIUS), 0.0, 1.0)
-        return t ** 3 * (10.0 - 15.0 * t + 6.0 * t * t)
-    return weight
-
-
 def energy_ratios(cells: int, offset: float) -> tuple[float, float]:
     """``(whole, far)``: ``E / (1/2 pi r^2 U^2)`` of the projected uniform stream at ``cells``
     cells across the cylinder, the cylinder moved downstream by ``offset`` cells."""
@@ -86,7 +78,8 @@ def energy_ratios(cells: int, offset: float) -> tuple[float, float]:
     spec = dataclasses.replace(spec, obstacles=(dataclasses.replace(ob, position=centre),))
     scale = 0.5 * math.pi * RADIUS ** 2
     return (disturbance_energy(spec) / scale,
-            disturbance_energy(spec, weight=far_window(centre[0], centre[1])) / scale)
+            disturbance_energy(spec, weight=far_window(centre[0], centre[1], 1.5 * RADIUS,
+                                                         4.5 * RADIUS)) / scale)
 
 
 def near_wall_error(cells: int, offset: float) -> tuple[float, float]:

@@ -22,6 +22,17 @@ from crosscheck.sim.fluid.pressure import project
 from crosscheck.sim.fluid.solver import INTEGRATORS, FluidState
 
 
+def far_window(cx: float, cy: float, inner: float, outer: float
+               ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """A ``weight`` for :func:`disturbance_energy`: 0 within ``inner`` of the point (cx, cy), 1
+    beyond ``outer``, the C2 quintic step between (smooth, so the windowed energy does not jump
+    as grid samples cross a circle)."""
+    def weight(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        t = np.clip((np.hypot(x - cx, y - cy) - inner) / (outer - inner), 0.0, 1.0)
+        return t ** 3 * (10.0 - 15.0 * t + 6.0 * t * t)
+    return weight
+
+
 def projected_stream(spec: Any, speed: float = 1.0, tolerance: float = 1e-12):
     """``(u, v, boundary)``: the stream ``speed`` along x projected once on the fluid ``spec``
     (an enclosed fluid's domain without free surface; the inflow side, if any, should carry the
