@@ -2,10 +2,10 @@
 convergence of 2D-1 (steady, Re = 20) and the periodic 2D-2 (Re = 100).
 
     .venv/bin/python benchmarks/bench_dfg.py [--case 2d1|2d2] [--cells 10 20 30 40]
-        [--duration S] [--integrator central] [--offset F] [--out DIR]
+        [--rows 41 43 ...] [--duration S] [--integrator central] [--offset F] [--out DIR]
 
 2D-1 runs ``cases/fluid/dfg_2d1.toml`` with the grid refined to ``--cells`` cells across the
-cylinder (the case file has 10), to ``--duration`` (default the case's 6 s, 30 convective
+cylinder (the case file has 10), to ``--duration`` (default the case's 12 s, 24 convective
 times), and measures the drag and lift coefficients and the front-back pressure difference with
 the case's own metrics (``compare/fluid_metrics.py``). The observed order of each quantity is
 ``log(e_coarse / e_fine) / log(h_coarse / h_fine)`` between successive grids, e the difference
@@ -16,9 +16,19 @@ makes ``f0 + C h^p`` pass through their three values) needs no reference at all.
 sampling every 5 ms, and measures the maximum drag and lift coefficients and the Strouhal
 number over the second half (the shedding has settled by then; the case metrics' default).
 
-``--offset F`` moves the cylinder downstream by F cells (0 <= F < 1; the case's placement has
-the cylinder's extreme points on grid lines): the runs at other offsets are listed apart, under
-"Where the grid cuts the cylinder", and measure how much of each number is the placement.
+``--rows N [N ...]`` runs the case at the published geometry on grids of N rows across the
+0.41 m channel (dx = 0.41 / N, N / 4.1 cells across the cylinder, the channel's length rounded
+to whole cells: 2.2 m within dx / 2, at the outflow 2 m downstream). The case's grids (N a
+multiple of 41) put the cylinder's four extreme points on grid lines; other N cut it elsewhere,
+so a family of nearby N measures how much of each number is where the grid cuts the cylinder
+(the scatter about the trend) apart from the grid's size (the trend). Listed under "Where the
+grid cuts the cylinder", with each family's mean and spread.
+
+``--offset F`` moves the cylinder downstream by F cells. That is another scene, not another
+grid: the cylinder's distance from the inflow (2 D to its centre) changes, and the numbers
+depend on it (whole-cell moves, which cut the cylinder as the case's grid does, give the 2D-1
+drag -1.1 % per centimetre downstream at 10 and at 20 cells across, the 2D-2 lift maximum
+-6.5 % per centimetre at 10). Listed apart, under "The cylinder moved".
 
 Each run is appended to ``benchmarks/results/dfg.json`` as it finishes (a long study survives a
 stop), and ``dfg.md`` is written from everything in it. Run in the background at low priority:
@@ -46,15 +56,19 @@ from crosscheck.sim.fluid import run_fluid
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "fluid" / "dfg_2d1.toml"
 OUT = ROOT / "benchmarks" / "results"
+ALIGNED_ROWS = 41            # rows across the channel at the case's grid (10 cells across D)
+FAMILY_EDGES = (13.5, 17.5, 25.0, 35.0)    # cells/D: families near 10, 15, 20, 30 and 40
+FRONT_X, CENTRE_Y = 0.15, 0.2   # the published cylinder's front point and centre height (m)
 QUANTITIES = {"2d1": ("drag_coefficient", "lift_coefficient", "pressure_difference"),
               "2d2": ("drag_coefficient_max", "lift_coefficient_max", "strouhal_number")}
 
 
-def scene_for(case: str, cells: int, duration: float | None, offset: float = 0.0):
-    """The DFG scene at ``cells`` cells across the cylinder; ``offset``: the cylinder moved
-    downstream by that fraction of a cell (the grid-placement study; the channel is 22 D long,
-    so a shift of a fraction of D / cells changes nothing the benchmark measures, only where the
-    grid lines cut the cylinder)."""
+def scene_for(case: str, cells: int | None, duration: float | None, offset: float = 0.0,
+              rows: int | None = None):
+    """The DFG scene at ``cells`` cells across the cylinder (a multiple of 10: the case's grid
+    refined), or on ``rows`` rows across the channel (any number: the published geometry, the
+    channel's length rounded to whole cells); ``offset``: the cylinder moved downstream by that
+    many cells (another scene: its distance from the inflow changes)."""
     text = CASE.read_text()
     if case == "2d2":
         text = (text.replace('name = "fluid-dfg-2d1"', 'name = "fluid-dfg-2d2"')
@@ -68,9 +82,18 @@ def scene_for(case: str, cells: int, duration: float | None, offset: float = 0.0
         duration = 10.0 if duration is None else duration
     else:
         scene = load_case(CASE)
-    k = cells / 10
-    nx, ny = (round(r * k) for r in scene.fluid.resolution)
-    fluid = dataclasses.replace(scene.fluid, resolution=(nx, ny))
+    base_nx, base_ny = scene.fluid.resolution
+    if rows is None:
+        rows = round(base_ny * cells / 10)
+    if rows % base_ny == 0:
+        # the case's grid refined: the cylinder's extreme points stay on grid lines
+        k = rows // base_ny
+        fluid = dataclasses.replace(scene.fluid, resolution=(base_nx * k, rows))
+    else:
+        length, height = scene.fluid.domain
+        dx = height / rows
+        nx = round(length / dx)
+        fluid = dataclasses.replace(scene.fluid, resolution=(nx, rows), domain=(nx * dx, height))
     if offset:
         # past the loader, which holds the case to the benchmark's geometry exactly
         ob = fluid.obstacles[0]
@@ -81,9 +104,12 @@ def scene_for(case: str, cells: int, duration: float | None, offset: float = 0.0
     return dataclasses.replace(scene, fluid=fluid, run=run)
 
 
-def run_one(case: str, cells: int, duration: float | None, integrator: str,
-            offset: float = 0.0) -> dict:
-    scene = scene_for(case, cells, duration, offset)
+def run_one(case: str, cells: int | None, duration: float | None, integrator: str,
+            offset: float = 0.0, rows: int | None = None) -> dict:
+    scene = scene_for(case, cells, duration, offset, rows)
+    dx = scene.fluid.dx
+    d = 2.0 * float(scene.fluid.obstacles[0].shape.radius)
+    cells = cells if rows is None else round(d / dx, 4)
     t0 = time.perf_counter()
     rec = run_fluid(scene, integrator)
     wall = time.perf_counter() - t0
@@ -91,6 +117,7 @@ def run_one(case: str, cells: int, duration: float | None, integrator: str,
     metrics = fluid_metrics(scene, rec) if rec.failure is None else {}
     return {
         "case": case, "cells_per_diameter": cells, "offset": offset,
+        "length": scene.fluid.domain[0],
         "grid": list(scene.fluid.resolution), "dx": scene.fluid.dx,
         "duration": scene.run.duration, "integrator": integrator,
         "failure": rec.failure, "wall_s": wall, "steps": m["dt"]["steps"],
@@ -156,6 +183,69 @@ def richardson(runs: list[dict], case: str) -> dict:
     return res
 
 
+def _family_lines(placed: list[dict], qs: tuple[str, ...]) -> list[str]:
+    """The runs at the published geometry in families of nearby cell sizes (edges at
+    ``FAMILY_EDGES`` cells across the cylinder): each family's runs, then its mean, spread
+    (standard deviation over the mean) and range, for families with runs on grids other than
+    the case's."""
+    bands: dict[int, list[dict]] = {}
+    for r in placed:
+        bands.setdefault(sum(r["cells_per_diameter"] >= e for e in FAMILY_EDGES), []).append(r)
+    bands = {b: rs for b, rs in bands.items()
+             if len(rs) > 1 and any(r["grid"][1] % ALIGNED_ROWS for r in rs)}
+    if not bands:
+        return []
+    lines = ["Where the grid cuts the cylinder (`--rows N`: the published geometry on N rows "
+             "across the channel; the case's grids, N a multiple of 41, have the cylinder's "
+             "extreme points on grid lines, other N cut it elsewhere; `front` is where the "
+             "cylinder's front point falls in its cell, `centre y` where its centre's height "
+             "falls, in cells):", "",
+             "| rows | cells/D | front | centre y | " + " | ".join(qs) + " |",
+             "|---" * (len(qs) + 4) + "|"]
+    for b in sorted(bands):
+        rs = sorted(bands[b], key=lambda r: r["grid"][1])
+        for r in rs:
+            dx = r["dx"]
+            lines.append(f"| {r['grid'][1]} | {r['cells_per_diameter']:.2f} | "
+                         f"{(FRONT_X / dx) % 1.0:.2f} | {(CENTRE_Y / dx) % 1.0:.2f} | "
+                         + " | ".join("-" if r["metrics"].get(q) is None
+                                      else f"{r['metrics'][q]:.5g}" for q in qs) + " |")
+        stats = []
+        for q in qs:
+            v = np.array([r["metrics"][q] for r in rs if r["metrics"].get(q) is not None])
+            stats.append(f"{v.mean():.5g} ± {100 * v.std() / abs(v.mean()):.2g} % "
+                         f"({v.min():.5g} to {v.max():.5g})" if v.size else "-")
+        cells = [r["cells_per_diameter"] for r in rs]
+        lines.append(f"| **{len(rs)} grids** | {min(cells):.1f} to {max(cells):.1f} | | | "
+                     + " | ".join(stats) + " |")
+    lines += ["", "Each family's last row: mean ± standard deviation over the mean (range).",
+              ""]
+    return lines + _pattern_lines(placed, qs)
+
+
+def _pattern_lines(placed: list[dict], qs: tuple[str, ...]) -> list[str]:
+    """N and N + 41 rows cut the cylinder in the same pattern at cell sizes in the ratio 2 : 1
+    (the grid is 41 rows per 10 cells across it). For every pattern run at both sizes (N from
+    42 to 52), its difference from the case's grid at the same size; the RMS over the patterns at
+    each size and the order at which it falls."""
+    by_rows = {r["grid"][1]: r for r in placed}
+    a, b = ALIGNED_ROWS, 2 * ALIGNED_ROWS
+    pats = [n for n in range(a + 1, b) if n in by_rows and n + a in by_rows]
+    if a not in by_rows or b not in by_rows or len(pats) < 2:
+        return []
+    out = []
+    for q in qs:
+        d1 = [by_rows[n]["metrics"][q] - by_rows[a]["metrics"][q] for n in pats]
+        d2 = [by_rows[n + a]["metrics"][q] - by_rows[b]["metrics"][q] for n in pats]
+        r1, r2 = (math.sqrt(sum(x * x for x in d) / len(d)) for d in (d1, d2))
+        out.append(f"{q} {r1:.3g} -> {r2:.3g} (order {math.log2(r1 / r2):.2f})"
+                   if r1 > 0 and r2 > 0 else f"{q} -")
+    return [f"The same cut at two cell sizes ({len(pats)} patterns: rows "
+            f"{', '.join(map(str, pats))} and {', '.join(str(n + a) for n in pats)}): "
+            "RMS of the difference from the case's grid at the same size, at 10 and at 20 "
+            "cells across: " + "; ".join(out) + ".", ""]
+
+
 def write_markdown(data: dict, path: Path) -> None:
     lines = ["# DFG benchmark: channel flow past a cylinder (in-house cut-cell fluid)", "",
              "Schafer & Turek (1996); reference intervals and the FEATFLOW 2D-1 values in "
@@ -165,12 +255,12 @@ def write_markdown(data: dict, path: Path) -> None:
              f"Machine: {data.get('machine', '?')}, 2 cores shared with other work (wall "
              "times are indicative only).", ""]
     for case, title in (("2d1", "2D-1, Re = 20, steady"), ("2d2", "2D-2, Re = 100, periodic")):
-        runs = sorted((r for r in data["runs"]
-                       if r["case"] == case and not r.get("offset", 0.0)),
+        placed = [r for r in data["runs"] if r["case"] == case and not r.get("offset", 0.0)]
+        runs = sorted((r for r in placed if r["grid"][1] % ALIGNED_ROWS == 0),
                       key=lambda r: r["cells_per_diameter"])
         if not runs:
             continue
-        moved = sorted((r for r in data["runs"] if r["case"] == case),
+        moved = sorted((r for r in data["runs"] if r["case"] == case and r.get("offset", 0.0)),
                        key=lambda r: (r["cells_per_diameter"], r.get("offset", 0.0)))
         refs, _ = dfg_reference("2D-1" if case == "2d1" else "2D-2")
         qs = QUANTITIES[case]
@@ -210,15 +300,17 @@ def write_markdown(data: dict, path: Path) -> None:
                 f"{q}: order {rich[q]['order']:.2f}, extrapolated {rich[q]['extrapolated']:.6g}"
                 if rich.get(q) else f"{q}: no f0 + C h^p fits (its differences do not shrink "
                 "as a power of h)" for q in qs) + ".", ""]
-        if any(r.get("offset", 0.0) for r in moved):
-            lines += ["Where the grid cuts the cylinder (`--offset f`: the cylinder moved "
-                      "downstream by f cells, a shift that changes nothing the benchmark "
-                      "measures; the grids above have the cylinder's four extreme points on "
-                      "grid lines):", "",
-                      "| cells/D | offset (cells) | " + " | ".join(qs) + " |",
-                      "|---" * (len(qs) + 2) + "|"]
+        lines += _family_lines(placed, qs)
+        if moved:
+            lines += ["The cylinder moved (`--offset f`: downstream by f cells, f dx). This is "
+                      "another scene, not another grid: the cylinder's distance from the inflow "
+                      "changes, and whole-cell moves (which cut the cylinder as the case's grid "
+                      "does) show how much the numbers depend on it:", "",
+                      "| cells/D | offset (cells) | moved (mm) | " + " | ".join(qs) + " |",
+                      "|---" * (len(qs) + 3) + "|"]
             for r in moved:
-                lines.append(f"| {r['cells_per_diameter']} | {r.get('offset', 0.0):g} | "
+                lines.append(f"| {r['cells_per_diameter']} | {r['offset']:g} | "
+                             f"{1000 * r['offset'] * r['dx']:.2f} | "
                              + " | ".join("-" if r["metrics"].get(q) is None
                                           else f"{r['metrics'][q]:.5g}" for q in qs) + " |")
             lines.append("")
@@ -242,22 +334,37 @@ def write_markdown(data: dict, path: Path) -> None:
     path.write_text("\n".join(lines).rstrip() + "\n")
 
 
+def _key(r: dict) -> tuple:
+    return (r["case"], r["grid"][1], r.get("offset", 0.0))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--case", choices=("2d1", "2d2"), default="2d1")
     ap.add_argument("--cells", type=int, nargs="+", default=None,
                     help="cells across the cylinder (multiples of 10); default 10 20 30 40 "
                          "(2D-1) or 10 20 (2D-2)")
+    ap.add_argument("--rows", type=int, nargs="+", default=None,
+                    help="rows across the channel instead (any number; 41 per 10 cells across "
+                         "the cylinder): where the grid cuts the cylinder")
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--integrator", default="central")
     ap.add_argument("--offset", type=float, default=0.0,
-                    help="move the cylinder downstream by this fraction of a cell (0 <= f < 1): "
-                         "how much the result depends on where the grid cuts the cylinder")
+                    help="move the cylinder downstream by this many cells (another scene: its "
+                         "distance from the inflow changes)")
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--report", action="store_true",
                     help="only rewrite dfg.md from dfg.json (no runs)")
     args = ap.parse_args()
-    cells = args.cells or ([10, 20, 30, 40] if args.case == "2d1" else [10, 20])
+    if args.rows:
+        grids = [(None, n) for n in args.rows]
+    else:
+        cells = args.cells or ([10, 20, 30, 40] if args.case == "2d1" else [10, 20])
+        for c in cells:
+            if c % 10:
+                raise SystemExit(f"--cells {c}: the DFG grid needs a multiple of 10 cells across "
+                                 "D (--rows for other grids)")
+        grids = [(c, None) for c in cells]
     args.out.mkdir(parents=True, exist_ok=True)
     jpath = args.out / "dfg.json"
     data = json.loads(jpath.read_text()) if jpath.exists() else {"runs": []}
@@ -265,16 +372,12 @@ def main() -> None:
     if args.report:
         write_markdown(data, args.out / "dfg.md")
         return
-    for c in cells:
-        if c % 10:
-            raise SystemExit(f"--cells {c}: the DFG grid needs a multiple of 10 cells across D")
-        entry = run_one(args.case, c, args.duration, args.integrator, args.offset)
+    for c, rows in grids:
+        entry = run_one(args.case, c, args.duration, args.integrator, args.offset, rows)
         # read again: another study may have added its runs meanwhile
         data = json.loads(jpath.read_text()) if jpath.exists() else {"runs": []}
         data["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cpus"
-        data["runs"] = [r for r in data["runs"]
-                        if (r["case"], r["cells_per_diameter"], r.get("offset", 0.0))
-                        != (args.case, c, args.offset)] + [entry]
+        data["runs"] = [r for r in data["runs"] if _key(r) != _key(entry)] + [entry]
         jpath.write_text(json.dumps(data, indent=1))
         write_markdown(data, args.out / "dfg.md")
         print(json.dumps({k: entry[k] for k in ("case", "cells_per_diameter", "wall_s")}),
