@@ -357,6 +357,10 @@ def main() -> None:
                     help="only rewrite dfg.md from dfg.json (no runs)")
     args = ap.parse_args()
     if args.rows:
+        for n in args.rows:
+            if n < 4:
+                raise SystemExit(f"--rows {n}: at least 4 rows across the channel (the fluid "
+                                 "grid's minimum per axis)")
         grids = [(None, n) for n in args.rows]
     else:
         cells = args.cells or ([10, 20, 30, 40] if args.case == "2d1" else [10, 20])

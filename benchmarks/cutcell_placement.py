@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.potential import disturbance_energy, far_window, projected_stream
+from crosscheck.sim.fluid.potential import far_window, projected_stream, stream_energy
 
 OUT = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 RADIUS = 0.05
@@ -66,20 +66,26 @@ obstacles = [{{ name = "cylinder", circle = {{ center = [0.5, 0.25], radius = {r
 """
 
 
+def _moved(spec, offset: float):
+    """``(spec, centre)``: the cylinder moved downstream by ``offset`` cells."""
+    ob = spec.obstacles[0]
+    centre = np.asarray(ob.position, float) + np.array([offset * spec.dx, 0.0])
+    return dataclasses.replace(spec, obstacles=(dataclasses.replace(ob, position=centre),)), centre
+
+
 def energy_ratios(cells: int, offset: float) -> tuple[float, float]:
     """``(whole, far)``: ``E / (1/2 pi r^2 U^2)`` of the projected uniform stream at ``cells``
-    cells across the cylinder, the cylinder moved downstream by ``offset`` cells."""
+    cells across the cylinder, the cylinder moved downstream by ``offset`` cells (one projection
+    for both)."""
     nx = 10 * cells
     scene = load_case_text(CASE.format(nx=nx, ny=nx // 2, r=RADIUS), "cutcell_placement.toml",
                            base_dir=".")
-    spec = scene.fluid
-    ob = spec.obstacles[0]
-    centre = np.asarray(ob.position, float) + np.array([offset * spec.dx, 0.0])
-    spec = dataclasses.replace(spec, obstacles=(dataclasses.replace(ob, position=centre),))
+    spec, centre = _moved(scene.fluid, offset)
+    stream = projected_stream(spec)
     scale = 0.5 * math.pi * RADIUS ** 2
-    return (disturbance_energy(spec) / scale,
-            disturbance_energy(spec, weight=far_window(centre[0], centre[1], 1.5 * RADIUS,
-                                                         4.5 * RADIUS)) / scale)
+    far = far_window(centre[0], centre[1], 1.5 * RADIUS, 4.5 * RADIUS)
+    return (stream_energy(spec, *stream) / scale,
+            stream_energy(spec, *stream, weight=far) / scale)
 
 
 def near_wall_error(cells: int, offset: float) -> tuple[float, float]:
@@ -89,10 +95,8 @@ def near_wall_error(cells: int, offset: float) -> tuple[float, float]:
     n = round(width * cells / (2 * RADIUS))
     text = (CASE.format(nx=n, ny=n, r=RADIUS).replace("[1.0, 0.5]", f"[{width}, {width}]")
             .replace("center = [0.5, 0.25]", f"center = [{width / 2}, {width / 2}]"))
-    spec = load_case_text(text, "cutcell_placement.toml", base_dir=".").fluid
-    ob = spec.obstacles[0]
-    centre = np.asarray(ob.position, float) + np.array([offset * spec.dx, 0.0])
-    spec = dataclasses.replace(spec, obstacles=(dataclasses.replace(ob, position=centre),))
+    spec, centre = _moved(load_case_text(text, "cutcell_placement.toml", base_dir=".").fluid,
+                          offset)
     u, _, bnd = projected_stream(spec)
     dx = spec.dx
     i, j = np.meshgrid(np.arange(n + 1), np.arange(n), indexing="ij")

@@ -24,7 +24,7 @@ from crosscheck.sim.fluid.solver import INTEGRATORS, FluidState
 
 def far_window(cx: float, cy: float, inner: float, outer: float
                ) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    """A ``weight`` for :func:`disturbance_energy`: 0 within ``inner`` of the point (cx, cy), 1
+    """A ``weight`` for :func:`stream_energy`: 0 within ``inner`` of the point (cx, cy), 1
     beyond ``outer``, the C2 quintic step between (smooth, so the windowed energy does not jump
     as grid samples cross a circle)."""
     def weight(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -47,14 +47,13 @@ def projected_stream(spec: Any, speed: float = 1.0, tolerance: float = 1e-12):
     return u, v, bnd
 
 
-def disturbance_energy(spec: Any, speed: float = 1.0, tolerance: float = 1e-12,
-                       weight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
-                       ) -> float:
-    """``E`` (m^4/s^2 per metre of depth over density) of ``projected_stream``. Each face counts
-    with its open fraction, times ``weight(x, y)`` at its sample if given (a smooth window that
-    leaves out the cut cells measures the far field alone: the faces at the wall carry the open
-    part's mean flux, whose square is not the kinetic energy of the part they stand for)."""
-    u, v, bnd = projected_stream(spec, speed, tolerance)
+def stream_energy(spec: Any, u: np.ndarray, v: np.ndarray, bnd: Any, speed: float = 1.0,
+                  weight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> float:
+    """``E`` (m^4/s^2 per metre of depth over density) of a ``projected_stream`` ``(u, v, bnd)``
+    of the stream ``speed``. Each face counts with its open fraction, times ``weight(x, y)`` at
+    its sample if given (a smooth window that leaves out the cut cells measures the far field
+    alone: the faces at the wall carry the open part's mean flux, whose square is not the
+    kinetic energy of the part they stand for)."""
     wu, wv = 1.0 - bnd.u_frac, 1.0 - bnd.v_frac
     if weight is not None:
         nx, ny = spec.resolution
@@ -64,3 +63,10 @@ def disturbance_energy(spec: Any, speed: float = 1.0, tolerance: float = 1e-12,
         wu = wu * weight(iu * dx, (ju + 0.5) * dx)
         wv = wv * weight((iv + 0.5) * dx, jv * dx)
     return float(0.5 * (np.sum(wu * (u - speed) ** 2) + np.sum(wv * v ** 2)) * spec.dx ** 2)
+
+
+def disturbance_energy(spec: Any, speed: float = 1.0, tolerance: float = 1e-12,
+                       weight: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+                       ) -> float:
+    """``stream_energy`` of the stream ``speed`` projected once on ``spec``."""
+    return stream_energy(spec, *projected_stream(spec, speed, tolerance), speed, weight)
