@@ -343,21 +343,41 @@ def test_floating_disc(fluid_case):
     draft error 0.49 % (0.52 and 0.47 % at half and twice the resolution), volume 1e-5, energy
     growth 2.5 % (0.4 % at twice); heave period 0.621 s (0.622 s at twice: converged) against
     the high-frequency estimate 0.711 s, docs/fluid.md says why that is not judged here."""
-    import dataclasses
-
-    scene = fluid_case("floating_box")
-    disc = dataclasses.replace(scene.fluid.bodies[0], shape=Circle(0.08),
-                               mass=500.0 * math.pi * 0.08 ** 2,
-                               inertia=np.array([[0.5 * 500.0 * math.pi * 0.08 ** 4]]),
-                               com=np.zeros(2))
-    scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, bodies=(disc,)))
-    rec = FluidRun(scene, "semi_lagrangian").record()
+    scene, rec = _floating_disc(fluid_case, 500.0)
     assert rec.failure is None
     m = fluid_metrics(scene, rec)
     assert m["draft_error"] < 0.01
     assert m["volume_change"] < 1e-3
     assert m["energy_growth"] < 0.05
     assert 0.58 < m["heave_period"] < 0.66
+
+
+@pytest.mark.parametrize("density", [200.0, 300.0])
+def test_light_floating_discs_keep_their_water(fluid_case, density):
+    """Discs of 0.2 and 0.3 the water's density (a fifth and under a third immersed) heaving
+    for 3 s keep the water within 2e-3 all along: measured 4.2e-4 and 8.5e-4 (3.5e-4 and
+    1.4e-4 at twice the resolution). Before the redistancing took its surface from the fluid only
+    (kernels.surface_may_seed), a zero contour that the filling drew inside the disc was taken
+    for the surface, drifted down to the disc's bottom wall, and the cut cells there read air:
+    they lost 0.43 % and 1.8 %. The half-immersed disc and the box keep 1e-5 either way."""
+    scene, rec = _floating_disc(fluid_case, density)
+    assert rec.failure is None
+    v = rec.series["volume"]
+    assert np.max(np.abs(v / v[0] - 1.0)) < 2e-3
+
+
+def _floating_disc(fluid_case, density):
+    """The floating-box case with its box replaced by a disc of radius 0.08 m and ``density``,
+    released at the box's point."""
+    import dataclasses
+
+    scene = fluid_case("floating_box")
+    disc = dataclasses.replace(scene.fluid.bodies[0], shape=Circle(0.08),
+                               mass=density * math.pi * 0.08 ** 2,
+                               inertia=np.array([[0.5 * density * math.pi * 0.08 ** 4]]),
+                               com=np.zeros(2))
+    scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, bodies=(disc,)))
+    return scene, FluidRun(scene, "semi_lagrangian").record()
 
 
 def test_viscous_exchange_conserves_momentum():

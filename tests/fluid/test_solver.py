@@ -164,6 +164,38 @@ def test_redistancing_keeps_the_surface_and_restores_distance():
     assert LS.fluid_area(d, solid, dx) == pytest.approx(math.pi * 0.25**2, rel=2e-3)
 
 
+@pytest.mark.parametrize("method", ["fast_sweeping", "fast_marching"])
+def test_redistancing_takes_the_surface_from_the_fluid(method):
+    """A flat surface at y = 0.75 and two solids holding the water's continuation: a block of
+    8 x 8 cells well below the surface, with a pocket of air of 4 x 4 cells at its centre (a
+    zero contour the filling of a solid can draw: nothing in the fluid holds it), and a block
+    piercing the surface. Given the solid, the pocket is no surface: the water beside the deep
+    block reads what it reads with no block there (14 to 22 cells from the surface); the
+    piercing block's sign change, next to the surface in the fluid, stays the surface: its cells
+    there keep their values as the fluid's surface cells do (the level set is 1.3 times a
+    distance, so a cell recomputed instead would show it). Without the solid the pocket is a
+    surface and the water beside the block reads 2.5 cells from it."""
+    n = 40
+    dx = 1.0 / n
+    x = (np.arange(n) + 0.5) * dx
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    exact = Y - 0.75
+    deep = (np.abs(X - 0.5) < 0.1) & (np.abs(Y - 0.3) < 0.1)
+    piercing = (np.abs(X - 0.2) < 0.05) & (np.abs(Y - 0.75) < 0.15)
+    to_pocket = 0.05 - np.maximum(np.abs(X - 0.5), np.abs(Y - 0.3))     # air inside it
+    phi = np.where(deep, to_pocket, 1.3 * exact)
+    d = LS.redistance(phi, dx, n, method, solid=deep | piercing)
+    beside = ~deep & (np.abs(X - 0.5) < 0.1 + dx) & (np.abs(Y - 0.3) < 0.1)
+    no_block = LS.redistance(1.3 * exact, dx, n, method)
+    assert np.max(np.abs(d[beside] - no_block[beside])) < 1e-9 * dx
+    waterline = piercing & (np.abs(exact) < dx)
+    assert np.count_nonzero(waterline) == 8
+    if method == "fast_sweeping":          # (fast marching recomputes its surface cells too)
+        assert np.array_equal(d[waterline], phi[waterline])
+    seen = LS.redistance(phi, dx, n, method)
+    assert np.max(np.abs(seen[beside])) < 4.0 * dx
+
+
 def test_velocity_extension_is_constant_along_normals():
     n = 32
     dx = 1.0 / n

@@ -417,7 +417,42 @@ def _sweep_update(d, frozen, i, j, h, cap):
 
 
 @njit(cache=True)
-def redistance_sweep(phi, dx, band_cells, iterations):
+def surface_may_seed(phi, solid, reach):
+    """Cells whose sign changes count as the free surface: every fluid cell, and the solid cells
+    within ``reach`` cells (in both directions) of a sign change between two fluid cells.
+
+    Inside a solid the level set is only the fluid's continuation (:func:`fill_solid`), and the
+    surface meets a wall where it arrives through the fluid. Anywhere else a sign change next to
+    a solid cell is a contour the filling drew (along a wet wall, deep inside a body) that
+    nothing holds: taken for the surface, it was what the distances beside it were measured to,
+    and those were extrapolated back inside, so it stayed wherever it drifted."""
+    nx, ny = phi.shape
+    fluid_surface = np.zeros((nx, ny), np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            if solid[i, j]:
+                continue
+            neg = phi[i, j] < 0.0
+            if ((i + 1 < nx and not solid[i + 1, j] and (phi[i + 1, j] < 0.0) != neg)
+                    or (j + 1 < ny and not solid[i, j + 1] and (phi[i, j + 1] < 0.0) != neg)):
+                fluid_surface[i, j] = True
+                if i + 1 < nx and not solid[i + 1, j] and (phi[i + 1, j] < 0.0) != neg:
+                    fluid_surface[i + 1, j] = True
+                if j + 1 < ny and not solid[i, j + 1] and (phi[i, j + 1] < 0.0) != neg:
+                    fluid_surface[i, j + 1] = True
+    may = ~solid
+    for i in range(nx):
+        for j in range(ny):
+            if not fluid_surface[i, j]:
+                continue
+            for a in range(max(i - reach, 0), min(i + reach + 1, nx)):
+                for b in range(max(j - reach, 0), min(j + reach + 1, ny)):
+                    may[a, b] = True
+    return may
+
+
+@njit(cache=True)
+def redistance_sweep(phi, dx, band_cells, iterations, may_seed):
     """Signed distance by fast sweeping (Zhao 2005) within ``band_cells`` of the surface.
 
     The cells on either side of a sign change keep their advected values (they define where the
@@ -427,6 +462,9 @@ def redistance_sweep(phi, dx, band_cells, iterations):
     redistancing itself volume-neutral: re-initialising them (as scikit-fmm does) moved the zero
     contour of an exact circle by up to 0.23 cells and lost 0.05 % of its area per call.
     Beyond the band values are capped at ``band_cells + 1`` cells with their sign kept.
+
+    Only a sign change between two cells of ``may_seed`` is the surface (:func:`surface_may_seed`);
+    the other cells keep their sign and take distances from it.
     """
     nx, ny = phi.shape
     cap = (band_cells + 1.0) * dx
@@ -437,13 +475,15 @@ def redistance_sweep(phi, dx, band_cells, iterations):
         for j in range(ny):
             p = phi[i, j]
             f = False
-            if i > 0 and (p < 0.0) != (phi[i - 1, j] < 0.0):
+            if not may_seed[i, j]:
+                pass
+            elif i > 0 and may_seed[i - 1, j] and (p < 0.0) != (phi[i - 1, j] < 0.0):
                 f = True
-            elif i < nx - 1 and (p < 0.0) != (phi[i + 1, j] < 0.0):
+            elif i < nx - 1 and may_seed[i + 1, j] and (p < 0.0) != (phi[i + 1, j] < 0.0):
                 f = True
-            elif j > 0 and (p < 0.0) != (phi[i, j - 1] < 0.0):
+            elif j > 0 and may_seed[i, j - 1] and (p < 0.0) != (phi[i, j - 1] < 0.0):
                 f = True
-            elif j < ny - 1 and (p < 0.0) != (phi[i, j + 1] < 0.0):
+            elif j < ny - 1 and may_seed[i, j + 1] and (p < 0.0) != (phi[i, j + 1] < 0.0):
                 f = True
             # cells far outside the band are frozen at the cap: no sweep work there. "Far" assumes
             # |grad phi| <= 2, which holds for a level set that was a distance one step ago

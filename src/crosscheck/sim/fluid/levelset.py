@@ -12,10 +12,20 @@ from numba import njit
 from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid.pressure import AIR
 
+# A sign change next to a solid cell is the surface within this many cells of the surface in the
+# fluid (kernels.surface_may_seed): 1 moved the waterline of a turned box at rest in its cut cells
+# (1.8e-5 of the volume at the first step), 2 keeps every shape at rest exact.
+SOLID_SURFACE_REACH = 2
+
 
 def redistance(phi: np.ndarray, dx: float, band_cells: float,
-               method: str = "fast_sweeping") -> np.ndarray:
+               method: str = "fast_sweeping", solid: np.ndarray | None = None) -> np.ndarray:
     """Restore ``|grad phi| = 1`` within ``band_cells`` of the surface.
+
+    With ``solid`` (the cells of obstacles and bodies, holding the fluid's continuation), a sign
+    change next to a solid cell is the surface only near the surface in the fluid
+    (:func:`kernels.surface_may_seed`); fast marching, which cannot be told that, leaves the
+    other solid cells out of its computation and returns them as given.
 
     ``fast_sweeping`` (default): compiled fast sweeping that keeps the cells next to the surface
     as they are (see :func:`kernels.redistance_sweep`), so redistancing does not move the surface.
@@ -29,14 +39,20 @@ def redistance(phi: np.ndarray, dx: float, band_cells: float,
     """
     if not (np.any(phi < 0) and np.any(phi > 0)):
         return phi
+    if solid is None:
+        may_seed = np.ones(phi.shape, bool)
+    else:
+        may_seed = K.surface_may_seed(phi, solid, SOLID_SURFACE_REACH)
     if method == "fast_sweeping":
-        return K.redistance_sweep(phi, dx, float(band_cells), 2)
+        return K.redistance_sweep(phi, dx, float(band_cells), 2, may_seed)
     width = band_cells * dx
-    d = skfmm.distance(phi, dx=dx, order=2, narrow=width)
+    left_out = ~may_seed
+    d = skfmm.distance(np.ma.MaskedArray(phi, mask=left_out) if solid is not None else phi,
+                       dx=dx, order=2, narrow=width)
     if isinstance(d, np.ma.MaskedArray):
         far = np.where(phi < 0, -(band_cells + 1) * dx, (band_cells + 1) * dx)
-        d = np.where(np.ma.getmaskarray(d), far, d.data)
-    return np.ascontiguousarray(d, dtype=float)
+        d = np.where(np.ma.getmaskarray(d), far, np.ma.getdata(d))
+    return np.ascontiguousarray(np.where(left_out, phi, d), dtype=float)
 
 
 def face_phi(phi: np.ndarray, axis: int) -> np.ndarray:

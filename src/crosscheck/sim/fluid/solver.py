@@ -301,7 +301,8 @@ class FluidState:
             if (self.step_index + 1) % spec.redistance_every == 0:
                 if bnd.has_cells:
                     K.fill_solid(self.phi, bnd.cells, self.band_cells)
-                self.phi = LS.redistance(self.phi, dx, self.redist_cells, spec.redistancing)
+                self.phi = LS.redistance(self.phi, dx, self.redist_cells, spec.redistancing,
+                                         bnd.cells if bnd.has_cells else None)
             t2 = time.perf_counter()
             timers["redistancing"] += t2 - t1
             if self.particles is not None:
