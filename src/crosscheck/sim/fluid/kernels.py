@@ -452,7 +452,7 @@ def surface_may_seed(phi, solid, reach):
 
 
 @njit(cache=True)
-def redistance_sweep(phi, dx, band_cells, iterations, may_seed):
+def redistance_sweep(phi, dx, band_cells, iterations, may_seed, masked):
     """Signed distance by fast sweeping (Zhao 2005) within ``band_cells`` of the surface.
 
     The cells on either side of a sign change keep their advected values (they define where the
@@ -463,8 +463,10 @@ def redistance_sweep(phi, dx, band_cells, iterations, may_seed):
     contour of an exact circle by up to 0.23 cells and lost 0.05 % of its area per call.
     Beyond the band values are capped at ``band_cells + 1`` cells with their sign kept.
 
-    Only a sign change between two cells of ``may_seed`` is the surface (:func:`surface_may_seed`);
-    the other cells keep their sign and take distances from it.
+    With ``masked``, only a sign change between two cells of ``may_seed`` is the surface
+    (:func:`surface_may_seed`); the other cells keep their sign and take distances from it.
+    Without, every sign change is, and ``may_seed`` is not read (a scene without solids does not
+    pay for the mask: 0.72 against 0.85 ms at 256^2).
     """
     nx, ny = phi.shape
     cap = (band_cells + 1.0) * dx
@@ -475,7 +477,16 @@ def redistance_sweep(phi, dx, band_cells, iterations, may_seed):
         for j in range(ny):
             p = phi[i, j]
             f = False
-            if not may_seed[i, j]:
+            if not masked:
+                if i > 0 and (p < 0.0) != (phi[i - 1, j] < 0.0):
+                    f = True
+                elif i < nx - 1 and (p < 0.0) != (phi[i + 1, j] < 0.0):
+                    f = True
+                elif j > 0 and (p < 0.0) != (phi[i, j - 1] < 0.0):
+                    f = True
+                elif j < ny - 1 and (p < 0.0) != (phi[i, j + 1] < 0.0):
+                    f = True
+            elif not may_seed[i, j]:
                 pass
             elif i > 0 and may_seed[i - 1, j] and (p < 0.0) != (phi[i - 1, j] < 0.0):
                 f = True

@@ -40,19 +40,23 @@ def redistance(phi: np.ndarray, dx: float, band_cells: float,
     if not (np.any(phi < 0) and np.any(phi > 0)):
         return phi
     if solid is None:
-        may_seed = np.ones(phi.shape, bool)
+        may_seed = _NO_MASK
     else:
         may_seed = K.surface_may_seed(phi, solid, SOLID_SURFACE_REACH)
     if method == "fast_sweeping":
-        return K.redistance_sweep(phi, dx, float(band_cells), 2, may_seed)
+        return K.redistance_sweep(phi, dx, float(band_cells), 2, may_seed, solid is not None)
     width = band_cells * dx
-    left_out = ~may_seed
-    d = skfmm.distance(np.ma.MaskedArray(phi, mask=left_out) if solid is not None else phi,
-                       dx=dx, order=2, narrow=width)
+    source = phi if solid is None else np.ma.MaskedArray(phi, mask=~may_seed)
+    d = skfmm.distance(source, dx=dx, order=2, narrow=width)
     if isinstance(d, np.ma.MaskedArray):
         far = np.where(phi < 0, -(band_cells + 1) * dx, (band_cells + 1) * dx)
         d = np.where(np.ma.getmaskarray(d), far, np.ma.getdata(d))
-    return np.ascontiguousarray(np.where(left_out, phi, d), dtype=float)
+    if solid is not None:
+        d = np.where(may_seed, d, phi)
+    return np.ascontiguousarray(d, dtype=float)
+
+
+_NO_MASK = np.ones((1, 1), bool)     # redistance_sweep does not read it unmasked
 
 
 def face_phi(phi: np.ndarray, axis: int) -> np.ndarray:
