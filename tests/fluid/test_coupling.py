@@ -235,6 +235,10 @@ def test_bodies_in_a_fluid_case_refuse_bad_input():
     with pytest.raises(CaseError) as exc:     # 1 cell from the bottom (2 required)
         _case(BOX % "0.064", TANK)
     assert exc.value.field == "bodies[0].position" and "bottom" in str(exc.value)
+    with pytest.raises(CaseError) as exc:     # through the open top: outside, no clearance asked
+        _case(BOX % "0.47", TANK)
+    assert exc.value.field == "bodies[0].position"
+    assert "within its open top side" in str(exc.value) and "0.02 m outside" in str(exc.value)
     with pytest.raises(CaseError) as exc:
         _case(BOX % "0.25", TANK + 'prescribed_velocity = { rotation = { center = [0.5, 0.5], '
               'angular_velocity = 1.0 } }')

@@ -444,11 +444,12 @@ def _check_bodies(f: Fields, bodies: tuple, domain: tuple, resolution: tuple, wa
         for side, m in margins.items():
             need = gap if walls[side] != "open" else 0.0
             if m < need:
+                rule = (f"at least {BODY_CLEARANCE_CELLS:g} cells ({need:.4g} m) from its {side} "
+                        f"side (there is no contact between a body and solids in the fluid)"
+                        if need > 0 else f"within its open {side} side")
                 raise CaseError(f.file, f"bodies[{k}].position",
-                                f"a pose that keeps the body inside fluid.domain and at least "
-                                f"{BODY_CLEARANCE_CELLS:g} cells ({need:.4g} m) from its "
-                                f"{side} side (there is no contact between a body and solids "
-                                f"in the fluid); its {side} edge is {m:.4g} m away",
+                                f"a pose that keeps the body inside fluid.domain, {rule}; its "
+                                f"{side} edge is {abs(m):.4g} m {'away' if m >= 0 else 'outside'}",
                                 [float(v) for v in body.position])
         for name_k, obstacle in enumerate(obstacles):
             olo, ohi = obstacle.bounding_box()
