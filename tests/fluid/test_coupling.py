@@ -370,9 +370,21 @@ def test_light_floating_discs_keep_their_water(fluid_case, density):
     assert np.max(np.abs(v / v[0] - 1.0)) < 2e-3
 
 
-def _floating_disc(fluid_case, density):
+def test_water_entry_keeps_the_water(fluid_case):
+    """The half-density disc dropped from 0.07 m above the surface (its centre at 0.40 m) hits
+    the water at 1.2 m/s, throws up a splash and floats: the water is kept within 1 % over 3 s,
+    measured 0.47 % (0.33 % at twice the resolution; most of it while the splash's sheets fall
+    back). Before the redistancing took its surface from the fluid only it lost 5.2 %."""
+    scene, rec = _floating_disc(fluid_case, 500.0, height=0.40)
+    assert rec.failure is None
+    v = rec.series["volume"]
+    assert np.max(np.abs(v / v[0] - 1.0)) < 0.01
+    assert rec.series["body_y.box"][-1] == pytest.approx(0.25, abs=0.01)   # afloat, half in
+
+
+def _floating_disc(fluid_case, density, height=None):
     """The floating-box case with its box replaced by a disc of radius 0.08 m and ``density``,
-    released at the box's point."""
+    released at the box's point or with its centre at ``height``."""
     import dataclasses
 
     scene = fluid_case("floating_box")
@@ -380,6 +392,8 @@ def _floating_disc(fluid_case, density):
                                mass=density * math.pi * 0.08 ** 2,
                                inertia=np.array([[0.5 * density * math.pi * 0.08 ** 4]]),
                                com=np.zeros(2))
+    if height is not None:
+        disc = dataclasses.replace(disc, position=np.array([disc.position[0], height]))
     scene = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid, bodies=(disc,)))
     return scene, FluidRun(scene, "semi_lagrangian").record()
 
