@@ -16,6 +16,7 @@ from crosscheck.sim.fluid.pressure import AIR
 # fluid (kernels.surface_may_seed): 1 moved the waterline of a turned box at rest in its cut cells
 # (1.8e-5 of the volume at the first step), 2 keeps every shape at rest exact.
 SOLID_SURFACE_REACH = 2
+_NO_MASK = np.ones((1, 1), bool)     # redistance_sweep does not read it without a solid
 
 
 def redistance(phi: np.ndarray, dx: float, band_cells: float,
@@ -54,9 +55,6 @@ def redistance(phi: np.ndarray, dx: float, band_cells: float,
     if solid is not None:
         d = np.where(may_seed, d, phi)
     return np.ascontiguousarray(d, dtype=float)
-
-
-_NO_MASK = np.ones((1, 1), bool)     # redistance_sweep does not read it unmasked
 
 
 def face_phi(phi: np.ndarray, axis: int) -> np.ndarray:
