@@ -15,6 +15,10 @@ columns and those lines, so reports can cite where the numbers come from.
   maximum lift, Strouhal number (2D-2, Re = 100), with the FEATFLOW reference values of 2D-1
   (:func:`dfg_reference`); its header names the copies it was checked against.
 
+* ``ursell_1949``: heave added mass and damping of a half-immersed circular cylinder in deep
+  water against ``omega^2 R / g`` (Ursell 1949; a public computation of his method, checked
+  against a fit to Faltinsen's graph: the file's header), behind :func:`floating_circle_heave`.
+
 A case names a data set by :data:`CASE_TABLES` (``reference.table``); the loader refuses any
 other name, and a cavity case whose Reynolds number is not one of the paper's
 (:func:`ghia_reynolds`). Both live in :mod:`crosscheck.scene.published_table`, with the loader's
@@ -43,7 +47,8 @@ from crosscheck.scene.published_table import (  # noqa: F401 - re-exported
 TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv",
           "faxen_1946": "faxen1946_cylinder_between_plates.csv",
           "cylinder_drag_steady": "cylinder_drag_steady_low_re.csv",
-          "wachs_2009": "wachs2009_disc_channel_sedimentation.csv"}
+          "wachs_2009": "wachs2009_disc_channel_sedimentation.csv",
+          "ursell_1949": "ursell1949_semicircle_heave.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
     TABLES[f"ghia_1982_re{_re}_v"] = f"ghia1982_re{_re}_v_horizontal_centreline.csv"
@@ -130,6 +135,41 @@ def sloshing_period(width: float, depth: float, g: float, mode: int = 1) -> floa
     w^2 = g k tanh(k h) with k = mode pi / width."""
     k = mode * math.pi / width
     return 2 * math.pi / math.sqrt(g * k * math.tanh(k * depth))
+
+
+def ursell_heave(k: float) -> tuple[float, float]:
+    """Heave added mass ``a33 / (rho A)`` and damping ``b33 / (rho A) sqrt(R / g)`` of a
+    half-immersed circular cylinder in deep water, ``A = pi R^2 / 2``, at ``k = omega^2 R / g``,
+    linear between the rows of data/ursell1949_semicircle_heave.csv (k from 0.5 to 1.2; its header
+    says where the numbers come from)."""
+    table = load_table("ursell_1949")
+    ks = table["K"]
+    if not ks[0] <= k <= ks[-1]:
+        raise ValueError(f"k = omega^2 R / g must be in [{ks[0]}, {ks[-1]}], got {k}")
+    return (float(np.interp(k, ks, table["added_mass"])),
+            float(np.interp(k, ks, table["damping"])))
+
+
+def floating_circle_heave(radius: float, g: float) -> tuple[float, float]:
+    """Natural period (s) and damping ratio of the heave of a circle floating half immersed (a
+    body of half the fluid's density) in deep water, from Ursell's added mass and damping at
+    its own frequency: ``omega^2 (M + a33(omega)) = C`` with ``M = rho A`` and the waterplane
+    stiffness ``C = 2 rho g R``, i.e. ``k = 4 / (pi (1 + a33 / (rho A)))``, solved by fixed point
+    (a33 varies by 1 % over the iterations' range); the damping ratio
+    ``b33 / (2 sqrt(C (M + a33)))``. Linear theory: small heave, no viscosity, no walls."""
+    k = 0.8
+    for _ in range(50):
+        added, _ = ursell_heave(k)
+        k_next = 4.0 / (math.pi * (1.0 + added))
+        if abs(k_next - k) < 1e-12:
+            break
+        k = k_next
+    added, damping = ursell_heave(k)
+    omega = math.sqrt(k * g / radius)
+    # per unit rho A: M + a = 1 + added, C = 2 g R / A = 4 g / (pi R), b = damping sqrt(g / R)
+    stiffness = 4.0 * g / (math.pi * radius)
+    ratio = damping * math.sqrt(g / radius) / (2.0 * math.sqrt(stiffness * (1.0 + added)))
+    return 2.0 * math.pi / omega, ratio
 
 
 def faxen_channel_lambda(k: float) -> float:
