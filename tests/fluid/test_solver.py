@@ -196,6 +196,20 @@ def test_redistancing_takes_the_surface_from_the_fluid(method):
     assert np.max(np.abs(seen[beside])) < 4.0 * dx
 
 
+@pytest.mark.parametrize("method", ["fast_sweeping", "fast_marching"])
+def test_redistancing_without_a_surface_in_the_fluid_changes_nothing(method):
+    """All the fluid is water and the only sign change is a pocket inside a solid: there is no
+    surface to measure from, so the level set comes back as it was (fast marching, asked for
+    the distance to no contour, raised before)."""
+    n = 20
+    dx = 1.0 / n
+    phi = np.full((n, n), -0.3)
+    solid = np.zeros((n, n), bool)
+    solid[8:12, 8:12] = True
+    phi[9:11, 9:11] = 0.1
+    assert np.array_equal(LS.redistance(phi, dx, 5, method, solid=solid), phi)
+
+
 def test_velocity_extension_is_constant_along_normals():
     n = 32
     dx = 1.0 / n

@@ -46,6 +46,8 @@ def redistance(phi: np.ndarray, dx: float, band_cells: float,
         may_seed = K.surface_may_seed(phi, solid, SOLID_SURFACE_REACH)
     if method == "fast_sweeping":
         return K.redistance_sweep(phi, dx, float(band_cells), 2, may_seed, solid is not None)
+    if solid is not None and not (np.any(phi[may_seed] < 0) and np.any(phi[may_seed] > 0)):
+        return phi.copy()   # no surface outside the solid (fast sweeping finds no seed either)
     width = band_cells * dx
     source = phi if solid is None else np.ma.MaskedArray(phi, mask=~may_seed)
     d = skfmm.distance(source, dx=dx, order=2, narrow=width)
