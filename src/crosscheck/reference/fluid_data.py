@@ -14,7 +14,6 @@ columns and those lines, so reports can cite where the numbers come from.
   the published intervals of drag, lift, pressure difference (2D-1, Re = 20) and maximum drag,
   maximum lift, Strouhal number (2D-2, Re = 100), with the FEATFLOW reference values of 2D-1
   (:func:`dfg_reference`); its header names the copies it was checked against.
-
 * ``ursell_1949``: heave added mass and damping of a half-immersed circular cylinder in deep
   water against ``omega^2 R / g`` (Ursell 1949; a public computation of his method, checked
   against a fit to Faltinsen's graph: the file's header), behind :func:`floating_circle_heave`.
@@ -142,7 +141,10 @@ def ursell_heave(k: float) -> tuple[float, float]:
     half-immersed circular cylinder in deep water, ``A = pi R^2 / 2``, at ``k = omega^2 R / g``,
     linear between the rows of data/ursell1949_semicircle_heave.csv (k from 0.5 to 1.2; its header
     says where the numbers come from)."""
-    table = load_table("ursell_1949")
+    return _ursell_at(load_table("ursell_1949"), k)
+
+
+def _ursell_at(table: Table, k: float) -> tuple[float, float]:
     ks = table["K"]
     if not ks[0] <= k <= ks[-1]:
         raise ValueError(f"k = omega^2 R / g must be in [{ks[0]}, {ks[-1]}], got {k}")
@@ -157,14 +159,15 @@ def floating_circle_heave(radius: float, g: float) -> tuple[float, float]:
     stiffness ``C = 2 rho g R``, i.e. ``k = 4 / (pi (1 + a33 / (rho A)))``, solved by fixed point
     (a33 varies by 1 % over the iterations' range); the damping ratio
     ``b33 / (2 sqrt(C (M + a33)))``. Linear theory: small heave, no viscosity, no walls."""
+    table = load_table("ursell_1949")
     k = 0.8
     for _ in range(50):
-        added, _ = ursell_heave(k)
+        added, _ = _ursell_at(table, k)
         k_next = 4.0 / (math.pi * (1.0 + added))
         if abs(k_next - k) < 1e-12:
             break
         k = k_next
-    added, damping = ursell_heave(k)
+    added, damping = _ursell_at(table, k)
     omega = math.sqrt(k * g / radius)
     # per unit rho A: M + a = 1 + added, C = 2 g R / A = 4 g / (pi R), b = damping sqrt(g / R)
     stiffness = 4.0 * g / (math.pi * radius)

@@ -433,13 +433,13 @@ def surface_may_seed(phi, solid, reach):
             if solid[i, j]:
                 continue
             neg = phi[i, j] < 0.0
-            if ((i + 1 < nx and not solid[i + 1, j] and (phi[i + 1, j] < 0.0) != neg)
-                    or (j + 1 < ny and not solid[i, j + 1] and (phi[i, j + 1] < 0.0) != neg)):
+            # each pair of fluid neighbours once: with the one to the right and the one above
+            if i + 1 < nx and not solid[i + 1, j] and (phi[i + 1, j] < 0.0) != neg:
                 fluid_surface[i, j] = True
-                if i + 1 < nx and not solid[i + 1, j] and (phi[i + 1, j] < 0.0) != neg:
-                    fluid_surface[i + 1, j] = True
-                if j + 1 < ny and not solid[i, j + 1] and (phi[i, j + 1] < 0.0) != neg:
-                    fluid_surface[i, j + 1] = True
+                fluid_surface[i + 1, j] = True
+            if j + 1 < ny and not solid[i, j + 1] and (phi[i, j + 1] < 0.0) != neg:
+                fluid_surface[i, j] = True
+                fluid_surface[i, j + 1] = True
     may = ~solid
     for i in range(nx):
         for j in range(ny):
