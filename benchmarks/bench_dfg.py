@@ -122,6 +122,7 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
         "duration": scene.run.duration, "integrator": integrator,
         "failure": rec.failure, "wall_s": wall, "steps": m["dt"]["steps"],
         "ms_per_step": m["ms_per_step"], "cg_iterations_mean": m["pressure_iterations"]["mean"],
+        "pressure_solver": m["pressure_iterations"].get("solver", "mic0"),
         "metrics": metrics,
         "recorded": time.strftime("%Y-%m-%d %H:%M:%S"),
         "load_average": os.getloadavg()[0],
@@ -279,7 +280,9 @@ def write_markdown(data: dict, path: Path) -> None:
             lines.append(f"| {r['cells_per_diameter']} | {r['grid'][0]} x {r['grid'][1]} | "
                          + " | ".join(cells)
                          + f" | {r['steps']} | {r['ms_per_step']:.1f} | "
-                         f"{r['cg_iterations_mean']:.0f} | {r['wall_s']:.0f} |")
+                         f"{r['cg_iterations_mean']:.0f}"
+                         f"{' (amg)' if r.get('pressure_solver') == 'amg' else ''} | "
+                         f"{r['wall_s']:.0f} |")
         lines += ["", "Published: " + ", ".join(
             f"{q} {refs[q].lower:g}-{refs[q].upper:g}"
             + ("" if refs[q].reference is None else f" (reference {refs[q].reference:.10g})")

@@ -174,6 +174,9 @@ class FluidSpec:
     redistance_every: int = 1
     redistancing: str = "fast_sweeping"
     pressure_tolerance: float = 1e-6
+    #: "auto": multigrid-preconditioned CG for a large matrix that does not change (no free
+    #: surface, no moving body), MIC(0)-PCG otherwise; "mic0" or "amg" to choose (sim/fluid/amg.py)
+    pressure_solver: str = "auto"
     min_volume_fraction: float = 0.5
     prescribed_velocity: Rotation | None = None
     particles: ParticleSpec = ParticleSpec()
@@ -349,6 +352,10 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
     redistancing = f.string("redistancing", "fast_sweeping",
                             choices=("fast_sweeping", "fast_marching"))
     ptol = f.number("pressure_tolerance", 1e-6, positive=True)
+    psolver = f.string("pressure_solver", "auto", choices=("auto", "mic0", "amg"))
+    if psolver == "amg" and bodies:
+        raise f.error("pressure_solver", '"auto" or "mic0" (the coupled solve with a body has '
+                      "no multigrid)", psolver)
     min_vol = f.number("min_volume_fraction", 0.5, nonnegative=True)
 
     prescribed = None
@@ -410,7 +417,7 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
                      viscosity_solver=viscosity_solver, initial=tuple(parts), density=density,
                      kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit, time_step=time_step,
                      redistance_every=redistance_every, redistancing=redistancing,
-                     pressure_tolerance=ptol,
+                     pressure_tolerance=ptol, pressure_solver=psolver,
                      min_volume_fraction=min_vol, prescribed_velocity=prescribed,
                      particles=particles, output=output, bodies=tuple(bodies))
 

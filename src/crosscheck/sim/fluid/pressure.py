@@ -351,12 +351,14 @@ def gather(index, grid, n):
     return x
 
 
-def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
+def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000, amg=None,
+            amg_min=0):
     """Make ``u, v`` discretely divergence free in the fluid with the solid boundary ``bnd``
     (``boundary.SolidBoundary``), whose velocity the solid faces of ``u, v`` must already carry
     (``boundary.impose``). ``p_guess`` (scaled pressure on the grid) warm-starts the solve and
-    receives the new scaled pressure. Returns (iterations, fluid cell count, largest |divergence|
-    residual before the solve)."""
+    receives the new scaled pressure. ``amg`` (``amg.StaticAMG``, kept by the caller across
+    steps): solve with it when the system has at least ``amg_min`` unknowns, else MIC(0)-PCG.
+    Returns (iterations, fluid cell count, largest |divergence| residual before the solve)."""
     (index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b,
      n_dir) = build_system(phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
     n = diag.shape[0]
@@ -372,7 +374,11 @@ def project(phi, bnd, u, v, ustate, vstate, p_guess, tol, max_iter=2000):
         diag[0] += 1.0
     x = gather(index, p_guess, n)
     bmax = float(np.max(np.abs(b)))
-    its = pcg(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, x, max(tol * bmax, 1e-13), max_iter)
+    stop = max(tol * bmax, 1e-13)
+    if amg is not None and n >= amg_min:
+        its = amg.solve(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, x, stop, max_iter)
+    else:
+        its = pcg(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, x, stop, max_iter)
     scatter(index, x, p_guess)
     apply_pressure(p_guess, phi, u, v, ustate, vstate)
     return its, n, bmax

@@ -233,7 +233,12 @@ class FluidRun:
             "ms_per_step_phases": {k: 1e3 * v / n for k, v in timers.items()} if n else None,
             "pressure_iterations": {"mean": float(np.mean(iters)) if iters else 0.0,
                                     "max": int(max(iters)) if iters else 0,
-                                    "unconverged": self.unconverged},
+                                    "unconverged": self.unconverged,
+                                    # "amg" once a multigrid hierarchy solved a step, with how
+                                    # many were built (1 for a matrix that never changed)
+                                    "solver": ("amg" if st.amg is not None and st.amg.setups
+                                               else "mic0"),
+                                    "amg_setups": st.amg.setups if st.amg is not None else 0},
             "fluid_cells_initial": st.fluid_cells0,
             "density": spec.density, "kinematic_viscosity": spec.kinematic_viscosity,
             "gravity": self.gravity.tolist(), "sample_every": self.sample_every,

@@ -30,6 +30,7 @@ import numpy as np
 from crosscheck.scene.fluid import FluidSpec, Layer
 from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid import levelset as LS
+from crosscheck.sim.fluid.amg import AMG_MIN_UNKNOWNS, StaticAMG
 from crosscheck.sim.fluid.boundary import (
     SolidBoundary,
     impose,
@@ -132,6 +133,13 @@ class FluidState:
             self.lid_warning = None
 
         self.has_surface = spec.has_surface
+        # the pressure matrix changes every step with a free surface or a moving body; without
+        # them it is built once, and a large one is solved by multigrid (sim/fluid/amg.py)
+        self.amg = None
+        self.amg_min = AMG_MIN_UNKNOWNS if spec.pressure_solver == "auto" else 0
+        if spec.pressure_solver == "amg" or (spec.pressure_solver == "auto"
+                                             and not self.has_surface and not spec.bodies):
+            self.amg = StaticAMG()
         # band of extended velocity: the backtrace goes at most cfl_limit cells, the midpoint
         # evaluation and the bilinear stencil need up to two more cells beyond it
         self.band_cells = math.ceil(spec.cfl_limit) + 3
@@ -365,13 +373,15 @@ class FluidState:
                 # the increment (it vanishes in a steady state), warm-started from the last one
                 pt = self.p_increment * scale
                 its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
-                                    spec.pressure_tolerance)
+                                    spec.pressure_tolerance, amg=self.amg,
+                                    amg_min=self.amg_min)
                 self.p_increment = pt / scale
                 self.p = self.p + self.p_increment
             else:
                 pt = self.p * scale
                 its, _, _ = project(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
-                                    spec.pressure_tolerance)
+                                    spec.pressure_tolerance, amg=self.amg,
+                                    amg_min=self.amg_min)
                 self.p = pt / scale
             t4 = time.perf_counter()
             timers["projection"] += t4 - t3

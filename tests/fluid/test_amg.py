@@ -1,0 +1,157 @@
+"""The multigrid pressure solve (sim/fluid/amg.py): the same answer as the direct solve and as
+MIC(0)-PCG, iterations that do not grow with the grid, a hierarchy built once for a matrix that
+does not change, and the case field that chooses it."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from crosscheck.errors import CaseError
+from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid import INTEGRATORS, run_fluid
+from crosscheck.sim.fluid import pressure as P
+from crosscheck.sim.fluid.amg import StaticAMG, assemble
+from crosscheck.sim.fluid.solver import FluidState
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import bench_dfg  # noqa: E402  (the DFG scene at any grid, shared with the benchmark)
+
+
+def _dfg_system(cells: int, seed: int = 0):
+    """The pressure system of the DFG channel (cut-cell cylinder, inflow, open outflow) at
+    ``cells`` across the cylinder, for a random velocity field."""
+    scene = bench_dfg.scene_for("2d2", cells, 0.1)
+    st = FluidState(scene.fluid, np.zeros(3), INTEGRATORS["central"])
+    bnd = st.static_boundary
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(st.u.shape)
+    v = rng.standard_normal(st.v.shape)
+    return P.build_system(st.phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
+
+
+def test_amg_matches_the_direct_solve_on_the_cut_cell_channel():
+    index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, ndir = _dfg_system(10)
+    assert ndir > 0                                  # the open outflow fixes the constant
+    ops = (diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+    ref = spla.spsolve(assemble(*ops).tocsc(), b)
+    x = np.zeros_like(b)
+    its = StaticAMG().solve(*ops, b, x, 1e-12 * np.max(np.abs(b)), 200)
+    assert 0 < its <= 20
+    assert np.max(np.abs(x - ref)) < 1e-9 * np.max(np.abs(ref))
+
+
+def test_amg_iterations_do_not_grow_with_the_grid_and_mic0s_do():
+    """The reason for the module: from zero to the runs' tolerance, MIC(0)-PCG needs more
+    iterations the finer the grid (about as 1/h: 71 and 134 for this random field at 10 and 20
+    cells across the cylinder), multigrid about the same number (7 and 8). Both stop on the same
+    criterion, so the solutions agree to it (1.5e-7 of the largest value measured)."""
+    counts = {}
+    for cells in (10, 20):
+        index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, _ = _dfg_system(cells)
+        ops = (diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+        tol = 1e-6 * np.max(np.abs(b))
+        x_mic = np.zeros_like(b)
+        x_amg = np.zeros_like(b)
+        counts[cells] = (P.pcg(*ops, b, x_mic, tol, 5000),
+                         StaticAMG().solve(*ops, b, x_amg, tol, 200))
+        assert min(counts[cells]) > 0
+        a = assemble(*ops)
+        # each meets the criterion, and the two solutions differ by what it allows
+        for x in (x_mic, x_amg):
+            assert np.max(np.abs(b - a @ x)) <= tol
+        assert np.max(np.abs(x_mic - x_amg)) < 1e-4 * np.max(np.abs(x_mic))
+    (mic10, amg10), (mic20, amg20) = counts[10], counts[20]
+    assert mic20 > 1.6 * mic10, counts
+    assert amg20 <= amg10 + 2 and amg20 <= 12, counts
+
+
+def test_the_hierarchy_is_built_once_and_again_when_the_matrix_changes():
+    index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, _ = _dfg_system(10)
+    ops = (diag, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+    amg = StaticAMG()
+    for _ in range(3):
+        amg.solve(*ops, b, np.zeros_like(b), 1e-8 * np.max(np.abs(b)), 200)
+    assert amg.setups == 1
+    changed = diag.copy()
+    changed[5] += 0.5                                 # another matrix (a face's weight moved)
+    x = np.zeros_like(b)
+    amg.solve(changed, *ops[1:], b, x, 1e-10 * np.max(np.abs(b)), 200)
+    assert amg.setups == 2
+    # and it solved that matrix, not the cached one
+    assert np.max(np.abs(b - assemble(changed, *ops[1:]) @ x)) <= 1e-10 * np.max(np.abs(b))
+
+
+def test_a_dfg_run_with_multigrid_matches_mic0_and_builds_one_hierarchy():
+    """The 2D-2 channel at 10 cells across for 0.3 s, the pressure by each solver: the forces on
+    the cylinder agree to what the solver tolerance (1e-6 of the largest divergence) lets
+    through, and the multigrid run built its hierarchy once (the matrix never changed)."""
+    scene = bench_dfg.scene_for("2d2", 10, 0.3)
+    runs = {}
+    for solver in ("mic0", "amg"):
+        s = dataclasses.replace(scene, fluid=dataclasses.replace(scene.fluid,
+                                                                 pressure_solver=solver))
+        runs[solver] = run_fluid(s, "central")
+        assert runs[solver].failure is None
+    meta = runs["amg"].meta["pressure_iterations"]
+    assert meta["solver"] == "amg" and meta["amg_setups"] == 1
+    assert meta["mean"] < 0.2 * runs["mic0"].meta["pressure_iterations"]["mean"]
+    assert runs["mic0"].meta["pressure_iterations"]["solver"] == "mic0"
+    for key in ("force_x.cylinder", "force_y.cylinder"):
+        a = np.asarray(runs["amg"].series[key])
+        m = np.asarray(runs["mic0"].series[key])
+        drag_scale = np.max(np.abs(runs["mic0"].series["force_x.cylinder"]))
+        # measured 8e-7 of the drag scale: the tolerance lets through about 1e-6
+        assert np.max(np.abs(a - m)) < 1e-5 * drag_scale, key
+
+
+def test_auto_uses_multigrid_only_where_the_matrix_is_static_and_large():
+    scene = bench_dfg.scene_for("2d2", 10, 0.02)      # 9 thousand unknowns: below the bound
+    st = FluidState(scene.fluid, np.zeros(3), INTEGRATORS["central"])
+    assert st.amg is not None and st.amg_min > diag_size(scene)
+    free = load_case_text(FREE_SURFACE, "f.toml")
+    assert FluidState(free.fluid, np.array([0.0, -9.81]), INTEGRATORS["semi_lagrangian"]).amg \
+        is None
+
+
+def diag_size(scene) -> int:
+    nx, ny = scene.fluid.resolution
+    return nx * ny
+
+
+FREE_SURFACE = """
+[case]
+name = "f"
+dimension = 2
+[run]
+duration = 0.1
+dt = 0.01
+[effects]
+gravity = [0.0, -9.81]
+[fluid]
+domain = [1.0, 1.0]
+resolution = [16, 16]
+walls = { left = "solid", right = "solid", bottom = "solid", top = "open" }
+density = 1000.0
+initial = [{ layer = { depth = 0.5 } }]
+"""
+
+
+@pytest.mark.parametrize("value, expected", [('"gmres"', "one of ['auto', 'mic0', 'amg']"),
+                                             ('"amg"', "no multigrid")])
+def test_pressure_solver_field_is_checked(value, expected):
+    text = FREE_SURFACE + f"pressure_solver = {value}\n"
+    if value == '"amg"':
+        text = text.replace("[fluid]", "[[bodies]]\nname = \"disc\"\nshape = { circle = { "
+                            "radius = 0.1 } }\nposition = [0.5, 0.5]\ndensity = 500.0\n"
+                            "[fluid]")
+    with pytest.raises(CaseError) as err:
+        load_case_text(text, "f.toml")
+    assert err.value.field == "fluid.pressure_solver", str(err.value)
+    assert expected in str(err.value), str(err.value)
