@@ -63,6 +63,7 @@ def test_parse_defaults_and_shapes():
      "fluid.initial[0]"),
     ("kinematic_viscosity = 1e-3\ndynamic_viscosity = 1.0\n", "fluid.dynamic_viscosity"),
     ("output = { fields = [\"u\", \"vorticity\"] }\n", "fluid.output.fields[1]"),
+    ("pressure_solver = \"gmres\"\n", "fluid.pressure_solver"),
 ])
 def test_bad_input_names_the_field(extra, field):
     with pytest.raises(CaseError) as err:
