@@ -182,6 +182,19 @@ def test_points_of_the_wrong_dimension_are_refused():
         Box((1.0, 1.0)).support([1.0, 2.0, 3.0])
 
 
+def test_a_polygon_built_clockwise_or_flat_is_refused():
+    """Clockwise, the inside test (left of every edge) holds nowhere: the triangle would have no
+    inside, and a fluid obstacle or a contact made of it would silently be empty."""
+    ccw = np.array([[0.0, 0.0], [4.0, 0.0], [0.0, 3.0]])
+    assert Polygon(ccw).contains([[1.0, 1.0]])[0]
+    with pytest.raises(ValueError, match="counter-clockwise.*-6.*reverse them"):
+        Polygon(ccw[::-1])
+    with pytest.raises(ValueError, match="signed area of 0"):
+        Polygon(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]))
+    with pytest.raises(ValueError, match="at least 3"):
+        Polygon(np.array([[0.0, 0.0], [1.0, 0.0]]))
+
+
 # -- support points -------------------------------------------------------------------------------
 def directions(dim: int, n: int = 400, seed: int = 3) -> np.ndarray:
     d = np.random.default_rng(seed).normal(size=(n, dim))

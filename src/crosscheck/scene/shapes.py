@@ -367,11 +367,24 @@ class Circle(_Solid):
 @dataclass(frozen=True)
 class Polygon(_Solid):
     """Convex polygon, vertices counter-clockwise (the loader refuses others and reorders
-    clockwise input)."""
+    clockwise input; built directly, clockwise or degenerate vertices raise ValueError)."""
 
     vertices: np.ndarray  # (K, 2), counter-clockwise, convex
     kind: str = "polygon"
     dimension: ClassVar[int] = 2
+
+    def __post_init__(self) -> None:
+        # clockwise vertices would turn the inside test (left of every edge) into "nowhere":
+        # a body with no inside and no error. The loader reorders a case's clockwise input;
+        # code that builds a Polygon itself is told here.
+        v = np.asarray(self.vertices, dtype=float)
+        if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] != 2:
+            raise ValueError(f"a Polygon needs at least 3 [x, y] vertices, got shape {v.shape}")
+        area2 = float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+        if not area2 > 0.0:
+            raise ValueError("a Polygon's vertices go counter-clockwise (positive area); these "
+                             f"enclose a signed area of {0.5 * area2:.6g}"
+                             + (": reverse them" if area2 < 0.0 else ""))
 
     def support(self, directions) -> np.ndarray:
         d = _points(directions, 2)
