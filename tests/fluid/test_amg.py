@@ -112,9 +112,18 @@ def test_a_dfg_run_with_multigrid_matches_mic0_and_builds_one_hierarchy():
 
 
 def test_auto_uses_multigrid_only_where_the_matrix_is_static_and_large():
-    scene = bench_dfg.scene_for("2d2", 10, 0.02)      # 9 thousand unknowns: below the bound
-    st = FluidState(scene.fluid, np.zeros(3), INTEGRATORS["central"])
-    assert st.amg is not None and st.amg_min > np.prod(scene.fluid.resolution)
+    """One step of the DFG channel with the default solver: MIC(0) at 9 thousand unknowns
+    (below the bound, no hierarchy built), multigrid at 36 thousand; none for a free surface."""
+    timers = dict.fromkeys(("advection", "redistancing", "particles", "forces", "projection",
+                            "extension"), 0.0)
+    built = {}
+    for cells in (10, 20):
+        scene = bench_dfg.scene_for("2d2", cells, 0.02)
+        assert scene.fluid.pressure_solver == "auto"
+        st = FluidState(scene.fluid, np.zeros(3), INTEGRATORS["central"])
+        st.step(1e-4, timers)
+        built[cells] = st.amg.setups
+    assert built == {10: 0, 20: 1}, built
     tank = load_case(ROOT / "cases" / "fluid" / "tank_at_rest.toml")   # a free surface
     assert FluidState(tank.fluid, np.array([0.0, -9.81]), INTEGRATORS["semi_lagrangian"]).amg \
         is None

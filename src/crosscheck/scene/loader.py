@@ -46,7 +46,16 @@ from crosscheck.scene.model import (
     dividing_step,
     whole_steps,
 )
-from crosscheck.scene.shapes import Box, Capsule, Circle, Cylinder, Mesh, Polygon, Sphere
+from crosscheck.scene.shapes import (
+    Box,
+    Capsule,
+    Circle,
+    Cylinder,
+    Mesh,
+    Polygon,
+    Sphere,
+    polygon_area2,
+)
 
 REFERENCE_KINDS = ("analytic", "table", "fine-step", "engine", "none")
 QUATERNION_UNIT_TOLERANCE = 1e-6  # |q| may differ from 1 by this much (then it is normalised)
@@ -332,7 +341,7 @@ def _polygon(f: Fields) -> Polygon:
 
 def _convex_polygon(f: Fields, field: str, raw: Any, pts: np.ndarray) -> Polygon:
     edges = np.roll(pts, -1, axis=0) - pts
-    area2 = np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1])
+    area2 = polygon_area2(pts)
     if abs(area2) < 1e-12:
         raise CaseError(f.file, field, "a polygon with non-zero area", raw)
     if area2 < 0:  # clockwise: store counter-clockwise, the convention of the 2D engines

@@ -364,6 +364,13 @@ class Circle(_Solid):
         return -r, r
 
 
+def polygon_area2(vertices: np.ndarray) -> float:
+    """Twice the signed area of the polygon ``vertices`` (K, 2) (shoelace): positive when they go
+    counter-clockwise."""
+    v = np.asarray(vertices, dtype=float)
+    return float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+
+
 @dataclass(frozen=True)
 class Polygon(_Solid):
     """Convex polygon, vertices counter-clockwise (the loader refuses others and reorders
@@ -380,7 +387,7 @@ class Polygon(_Solid):
         v = np.asarray(self.vertices, dtype=float)
         if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] != 2:
             raise ValueError(f"a Polygon needs at least 3 [x, y] vertices, got shape {v.shape}")
-        area2 = float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+        area2 = polygon_area2(v)
         if not area2 > 0.0:
             raise ValueError("a Polygon's vertices go counter-clockwise (positive area); these "
                              f"enclose a signed area of {0.5 * area2:.6g}"
