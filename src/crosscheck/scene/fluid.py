@@ -160,7 +160,7 @@ class FluidSpec:
     resolution: tuple[int, ...]
     walls: dict[str, str] = field(default_factory=dict)
     no_slip: bool = False
-    lid: Lid | None = None
+    lids: tuple[Lid, ...] = ()  # solid sides moving tangentially, each side at most once
     inflow: Inflow | None = None
     obstacles: tuple[Placed, ...] = ()  # a placed Box, Circle or Polygon each
     obstacle_names: tuple[str, ...] = ()  # one per obstacle: its name, or "obstacle<k>"
@@ -184,6 +184,15 @@ class FluidSpec:
     #: dynamic bodies coupled with the fluid: the case's ``[[bodies]]`` (``scene.model.Body``,
     #: per unit depth); empty: no coupling (docs/fluid.md, "Rigid bodies in the fluid")
     bodies: tuple = ()
+
+    @property
+    def lid(self) -> Lid | None:
+        """The one moving side of a lid-driven cavity; None with no moving side or several."""
+        return self.lids[0] if len(self.lids) == 1 else None
+
+    def wall_speed(self, side: str) -> float:
+        """Tangential speed of a solid side (m/s; 0 unless it moves)."""
+        return next((lid.speed for lid in self.lids if lid.side == side), 0.0)
 
     @property
     def dimension(self) -> int:
@@ -244,6 +253,31 @@ def _shape(f: Fields, dim: int, *, allow_layer: bool, obstacle: bool = False) ->
                       s.number("phase", 0.0, unit="rad"))
     s.done()
     return shape
+
+
+def _lids(f: Fields, walls: dict[str, str]) -> tuple[Lid, ...]:
+    """``lid``: one table (the cavity's lid) or an array of them (several sides moving, e.g. both
+    side walls of a channel at the speed of the flow far upstream: a settling body's frame).
+    Each side at most once, each a solid side."""
+    raw = f.raw("lid", None)
+    if raw is None:
+        return ()
+    if isinstance(raw, dict):
+        entries = [f.sub("lid")]
+    elif isinstance(raw, list) and raw and all(isinstance(v, dict) for v in raw):
+        entries = f.table_list("lid")
+    else:
+        raise f.error("lid", "a table { side, speed } or an array of such tables", raw)
+    lids: list[Lid] = []
+    for lf in entries:
+        side = lf.string("side", "top", choices=SIDES_2D)
+        if walls[side] != "solid":
+            raise lf.error("side", f"a solid side (fluid.walls.{side} is {walls[side]!r})", side)
+        if any(lid.side == side for lid in lids):
+            raise lf.error("side", "each side at most once", side)
+        lids.append(Lid(side, lf.number("speed", unit="m/s")))
+        lf.done()
+    return tuple(lids)
 
 
 def _obstacles(f: Fields, dim: int) -> tuple[tuple[Placed, ...], tuple[str, ...]]:
@@ -308,14 +342,7 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
                         ramp_time=inf.number("ramp_time", 0.0, nonnegative=True, unit="s"))
         inf.done()
 
-    lid = None
-    lf = f.sub("lid", None)
-    if lf is not None:
-        side = lf.string("side", "top", choices=SIDES_2D)
-        if walls[side] != "solid":
-            raise lf.error("side", f"a solid side (fluid.walls.{side} is {walls[side]!r})", side)
-        lid = Lid(side, lf.number("speed", unit="m/s"))
-        lf.done()
+    lids = _lids(f, walls)
 
     density = f.number("density", 1000.0, positive=True, unit="kg/m^3")
     if f.has("kinematic_viscosity") and f.has("dynamic_viscosity"):
@@ -412,7 +439,7 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
     if bodies:
         _check_bodies(f, bodies, domain, resolution, walls, obstacles, nu, no_slip, prescribed)
     f.done()
-    return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lid=lid,
+    return FluidSpec(domain=domain, resolution=resolution, walls=walls, no_slip=no_slip, lids=lids,
                      inflow=inflow, obstacles=obstacles, obstacle_names=obstacle_names,
                      viscosity_solver=viscosity_solver, initial=tuple(parts), density=density,
                      kinematic_viscosity=nu, cfl=cfl, cfl_limit=cfl_limit, time_step=time_step,

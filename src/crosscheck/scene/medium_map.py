@@ -51,9 +51,9 @@ def unmappable(scene) -> tuple[str, str, Any] | None:
     if sides or fluid.inflow is not None:
         return ("fluid.walls", "closed solid sides (a fluid at rest: MuJoCo's medium does not "
                 "flow)", sides or "inflow")
-    if fluid.lid is not None:
+    if fluid.lids:
         return ("fluid.lid", "no moving side (a fluid at rest: MuJoCo's medium does not flow)",
-                fluid.lid.side)
+                ", ".join(lid.side for lid in fluid.lids))
     if len(fluid.bodies) != 1:
         return ("bodies", "exactly one body in the fluid (the disc the mapped cylinder stands "
                 "for)", f"{len(fluid.bodies)} bodies")

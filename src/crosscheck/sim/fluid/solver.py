@@ -121,12 +121,11 @@ class FluidState:
                 return -1.0, 0.0   # the inflow is normal to its side: no tangential velocity
             if spec.walls.get(side, "solid") == "open" or not spec.no_slip:
                 return 1.0, 0.0
-            speed = spec.lid.speed if spec.lid is not None and spec.lid.side == side else 0.0
-            return -1.0, 2.0 * speed
+            return -1.0, 2.0 * spec.wall_speed(side)
 
         self.gu = (*ghost("bottom"), *ghost("top"))
         self.gv = (*ghost("left"), *ghost("right"))
-        if spec.lid is not None and not spec.no_slip:
+        if spec.lids and not spec.no_slip:
             # a free-slip lid cannot drive anything: the case is inconsistent, say so by meta
             self.lid_warning = "lid on a free-slip wall has no effect; set fluid.no_slip = true"
         else:
@@ -241,8 +240,8 @@ class FluidState:
     def max_speed_faces(self) -> float:
         """Largest face velocity component the next trace will see (fluid and extended faces)."""
         m = max(float(np.max(np.abs(self.u))), float(np.max(np.abs(self.v))))
-        if self.spec.lid is not None:
-            m = max(m, abs(self.spec.lid.speed))
+        for lid in self.spec.lids:
+            m = max(m, abs(lid.speed))
         return m
 
     # -- one step ------------------------------------------------------------------------
@@ -476,8 +475,8 @@ class FluidState:
         ghosts = {}
         for side in ("left", "right", "bottom", "top"):
             kind = spec.walls.get(side, "solid")
-            if spec.lid is not None and spec.lid.side == side:
-                ghosts[side] = (-1.0, 2.0 * spec.lid.speed)
+            if spec.wall_speed(side) != 0.0:
+                ghosts[side] = (-1.0, 2.0 * spec.wall_speed(side))
             elif kind == "open" or (kind == "solid" and not spec.no_slip):
                 ghosts[side] = (1.0, 0.0)
             else:  # a no-slip wall at rest; an inflow side has no tangential velocity

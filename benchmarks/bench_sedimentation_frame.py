@@ -1,0 +1,220 @@
+"""A disc settling in a channel, run twice: coupled (the disc falls through fluid at rest) and in
+the disc's frame (the disc fixed, the fluid and the channel's walls moving past it at the disc's
+speed). Issue 14, point 3: the two-way coupled solver against the fixed-obstacle solver, which
+the DFG benchmark validates (docs/fluid.md), on the same physics.
+
+    PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation_frame.py
+        [--frame-cells 4 8] [--speeds 0.052 0.058 0.0692] [--coupled tall:4:0.001 ...]
+
+The scene has the parameters of Glowinski, Pan, Hesla and Joseph's single settling disc (a
+closed channel 2 cm wide, d = 0.25 cm, rho_s / rho = 1.25, nu = 0.1 cm^2/s, g = 981 cm/s^2,
+here in SI). Galilean invariance: a disc falling at its terminal speed U through an endless
+channel at rest is, in its own frame, a fixed disc in a uniform stream U with both walls moving
+at U. So the drag the fixed solver measures at U (``force_y`` of the obstacle, gravity off)
+equals the disc's reduced weight exactly at the coupled solver's terminal speed. The frame runs
+give the drag at a few speeds (a steady flow, the mean over the last 0.3 s); the terminal speed
+is where the drag, interpolated as a power of U between the two speeds that bracket it, equals
+the weight. The coupled runs release the disc from rest on the axis of a channel 12 cm tall
+(y = 10 cm) and take its largest speed (the approach is monotone; it decelerates only near the
+bottom, stopped 1.5 cells before it), and the same in the benchmark's own box (6 cm tall,
+released at y = 4 cm, whose largest speed is the published "Re_max").
+
+Writes ``benchmarks/results/sedimentation_frame.{json,md}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid.run import FluidRun
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results"
+D = 0.0025          # m
+WIDTH = 0.02        # m, 8 d
+NU = 1.0e-5         # m^2/s
+RHO, RHO_S, G = 1000.0, 1250.0, 9.81
+WEIGHT = (RHO_S - RHO) * G * math.pi * (D / 2) ** 2   # reduced weight, N per unit depth
+
+
+def frame_case(speed: float, cells: int) -> str:
+    """The disc fixed 8 d above the inflow, a uniform stream ``speed`` from below, both side
+    walls moving up at ``speed``, the top open 16 d downstream; no gravity (the drag alone)."""
+    dx = D / cells
+    height = 0.06
+    return f'''[case]
+name = "sedimentation-frame-{cells}-{speed:g}"
+description = "A disc held in a stream in a channel whose walls move with the stream."
+tags = ["fluid", "viscous"]
+dimension = 2
+
+[run]
+duration = 1.5
+dt = 0.01
+sample_every = 0.01
+engines = ["inhouse"]
+integrators = {{ inhouse = ["central"] }}
+
+[fluid]
+domain = [{WIDTH}, {height}]
+resolution = [{round(WIDTH / dx)}, {round(height / dx)}]
+density = {RHO}
+kinematic_viscosity = {NU}
+cfl = 0.5
+walls = {{ bottom = "inflow", top = "open", left = "solid", right = "solid" }}
+inflow = {{ profile = "uniform", speed = {speed} }}
+lid = [{{ side = "left", speed = {speed} }}, {{ side = "right", speed = {speed} }}]
+obstacles = [{{ name = "disc", circle = {{ center = [{WIDTH / 2}, 0.02], radius = {D / 2} }} }}]
+output = {{ forces = true }}
+'''
+
+
+def coupled_case(cells: int, step: float, height: float, start: float,
+                 integrator: str = "maccormack") -> str:
+    dx = D / cells
+    return f'''[case]
+name = "sedimentation-coupled-{cells}"
+description = "A disc released from rest on the axis of a closed channel 8 d wide."
+tags = ["fluid", "coupling", "viscous", "sedimentation"]
+dimension = 2
+
+[run]
+duration = 3.0
+dt = {step}
+sample_every = {step}
+engines = ["inhouse"]
+integrators = {{ inhouse = ["{integrator}"] }}
+
+[effects]
+gravity = [0.0, -{G}]
+
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {D / 2} }} }}
+density = {RHO_S}
+position = [{WIDTH / 2}, {start}]
+
+[fluid]
+domain = [{WIDTH}, {height}]
+resolution = [{round(WIDTH / dx)}, {round(height / dx)}]
+density = {RHO}
+kinematic_viscosity = {NU}
+'''
+
+
+def frame_run(speed: float, cells: int) -> dict:
+    scene = load_case_text(frame_case(speed, cells), "frame.toml")
+    t0 = time.perf_counter()
+    rec = FluidRun(scene, "central").record()
+    wall = time.perf_counter() - t0
+    t = np.asarray(rec.t)
+    fy = np.asarray(rec.series["force_y.disc"])
+    last = t > t[-1] - 0.3
+    drag = float(np.mean(fy[last]))
+    return {"speed": speed, "cells": cells, "re": speed * D / NU, "drag": drag,
+            "drag_over_weight": drag / WEIGHT, "cd": drag / (0.5 * RHO * speed ** 2 * D),
+            "unsteadiness": float(np.ptp(fy[last]) / abs(drag)), "failure": rec.failure,
+            "wall_s": wall}
+
+
+def coupled_run(cells: int, step: float, box: str, integrator: str = "maccormack") -> dict:
+    height, start = {"tall": (0.12, 0.10), "glowinski": (0.06, 0.04)}[box]
+    scene = load_case_text(coupled_case(cells, step, height, start, integrator), "coupled.toml")
+    t0 = time.perf_counter()
+    rec = FluidRun(scene, integrator).record()
+    wall = time.perf_counter() - t0
+    t = np.asarray(rec.t)
+    vy = np.asarray(rec.series["body_vy.disc"])
+    i = int(np.argmin(vy))
+    return {"cells": cells, "step": step, "box": box, "integrator": integrator,
+            "u_max": float(-vy[i]), "re_max": float(-vy[i] * D / NU), "t_max": float(t[i]),
+            "y_max": float(rec.series["body_y.disc"][i]),
+            "stopped": None if rec.failure is None else rec.failure.get("time"),
+            "wall_s": wall}
+
+
+def terminal_speed(frames: list[dict]) -> float | None:
+    """Where the drag equals the reduced weight: D = a U^n through the two bracketing speeds."""
+    pts = sorted((f["speed"], f["drag"]) for f in frames if f["failure"] is None)
+    for (u0, d0), (u1, d1) in itertools.pairwise(pts):
+        if d0 <= WEIGHT <= d1:
+            n = math.log(d1 / d0) / math.log(u1 / u0)
+            return u0 * (WEIGHT / d0) ** (1.0 / n)
+    return None
+
+
+def markdown(result: dict) -> str:
+    uts = result["terminal_speed"]
+    lines = [
+        "# A settling disc, coupled and in its own frame",
+        "",
+        f"Generated by `benchmarks/bench_sedimentation_frame.py` on {result['recorded']} "
+        f"({result['machine']}). Glowinski et al.'s single settling disc: channel 8 d wide, "
+        "d = 2.5 mm, rho_s / rho = 1.25, nu = 1e-5 m^2/s, g = 9.81 (reduced weight "
+        f"{WEIGHT:.5g} N/m).",
+        "",
+        "## The disc's frame (fixed obstacle, walls moving with the stream)",
+        "",
+        "| U (m/s) | Re | cells/d | drag (N/m) | drag / weight | C_D | wall (s) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for f in result["frames"]:
+        lines.append(f"| {f['speed']:g} | {f['re']:.2f} | {f['cells']} | {f['drag']:.5g} | "
+                     f"{f['drag_over_weight']:.4f} | {f['cd']:.3f} | {f['wall_s']:.0f} |")
+    lines += ["", "Terminal speed where the drag equals the weight: " + ", ".join(
+        f"{c} cells/d **{u:.5f} m/s, Re {u * D / NU:.2f}**" if u is not None
+        else f"{c} cells/d -" for c, u in uts.items()), "",
+              "## Coupled (the disc released from rest)", "",
+              "| box | advection | cells/d | step (s) | CFL at U | u max (m/s) | Re max | "
+              "against the frame | at t (s) | wall (s) |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in result["coupled"]:
+        cfl = c["u_max"] * c["step"] / (D / c["cells"])
+        ut = uts.get(str(c["cells"]))
+        vs = "-" if ut is None else f"{(c['u_max'] / ut - 1) * 100:+.1f} %"
+        lines.append(f"| {c['box']} | {c['integrator']} | {c['cells']} | {c['step']:g} | "
+                     f"{cfl:.2f} | {c['u_max']:.5f} | {c['re_max']:.2f} | {vs} | "
+                     f"{c['t_max']:.2f} | {c['wall_s']:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frame-cells", type=int, nargs="+", default=[4, 8])
+    ap.add_argument("--speeds", type=float, nargs="+", default=[0.052, 0.058, 0.0692])
+    ap.add_argument("--coupled", nargs="*", default=[
+        "tall:4:0.002", "tall:4:0.001", "tall:4:0.0005", "tall:4:0.00025",
+        "tall:8:0.004", "tall:8:0.002", "glowinski:8:0.002", "glowinski:8:0.0005"],
+        help="box:cells:step[:integrator], box 'tall' (12 cm) or 'glowinski' (6 cm)")
+    args = ap.parse_args()
+    result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
+              "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
+    for cells in args.frame_cells:
+        for speed in args.speeds:
+            result["frames"].append(frame_run(speed, cells))
+            print(json.dumps(result["frames"][-1]), flush=True)
+    # the terminal speed at each grid (a coupled run is compared with its own grid's)
+    result["terminal_speed"] = {str(c): terminal_speed(
+        [f for f in result["frames"] if f["cells"] == c]) for c in args.frame_cells}
+    for spec in args.coupled:
+        box, cells, step, *rest = spec.split(":")
+        result["coupled"].append(coupled_run(int(cells), float(step), box, *rest))
+        print(json.dumps(result["coupled"][-1]), flush=True)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "sedimentation_frame.json").write_text(json.dumps(result, indent=2))
+    (OUT / "sedimentation_frame.md").write_text(markdown(result))
+    print(markdown(result))
+
+
+if __name__ == "__main__":
+    main()
