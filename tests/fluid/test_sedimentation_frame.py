@@ -67,8 +67,9 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     """At 4 cells per diameter: the frame's drag at two speeds that bracket the reduced weight
     gives the terminal speed (0.0566 m/s, Re 14.2; insensitive to the frame's length: 0.06 %
     with the channel twice as long up- and downstream). The coupled disc released from rest in
-    a channel 12 cm tall approaches it from below, but its explicit viscous exchange with the
-    fluid is first order in the step with a large constant at this Reynolds number
+    a channel 12 cm tall approaches it from below, but the coupled step is first order in the
+    step with a large constant at this Reynolds number (not from the explicit viscous exchange:
+    docs/fluid.md)
     (benchmarks/results/sedimentation_frame.md: +11.7 / +5.6 / +1.1 / -0.5 % at the steps 0.002
     / 0.001 / 0.0005 / 0.00025, converging on the frame's speed within about 2 %). At the step
     0.0005 the bound is 3 %: a wrong added mass, pressure or viscous force on the body moves it
