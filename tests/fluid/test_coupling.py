@@ -536,7 +536,8 @@ def test_disc_settling_in_a_channel_against_faxen(runs, tmp_path):
     ===========  =========  =========  ===============
 
     first order in the step (differences 1.53 and 0.69 % at dx = a / 4; not the explicit viscous
-    exchange with the body: a monolithic exchange, measured, gives +4.40 and +6.17 %); extrapolated to dt -> 0: +2.85 % at dx = a / 4 (docs/fluid.md has the
+    exchange with the body: a monolithic exchange, measured, gives +4.40 and +6.17 %);
+    extrapolated to dt -> 0: +2.85 % at dx = a / 4 (docs/fluid.md has the
     finer grid). The test runs the case and the case with the step doubled."""
     scene, rec = _sedimentation(runs)
     assert rec.failure is None

@@ -121,6 +121,10 @@ def test_cavity_table_needs_a_square_top_lid_cavity():
     refused(cavity(speed=-1.0, nu=-0.01 * -1), "reference.table", "+x")
     refused(cavity().replace("domain = [1.0, 1.0]", "domain = [2.0, 1.0]")
             .replace("[16, 16]", "[32, 16]"), "reference.table", "square")
+    two = cavity().replace('lid = { side = "top", speed = 1.0 }',
+                           'lid = [{ side = "top", speed = 1.0 }, { side = "left", speed = 1.0 }]')
+    assert "side = \"left\"" in two
+    refused(two, "reference.table", "2 moving sides")
 
 
 def test_the_shipped_cavity_case_loads_at_re_100():

@@ -197,7 +197,8 @@ def cavity_reynolds(f: Fields, name: str, fluid: Any) -> int:
     if lid is None or lid.side != "top" or lid.speed <= 0:
         raise f.error("table", f"a case {name} describes: a lid on the top side moving in +x "
                       "(fluid.lid = { side = \"top\", speed > 0 })",
-                      None if lid is None else f"lid {lid.side} at {lid.speed} m/s")
+                      f"lid {lid.side} at {lid.speed} m/s" if lid is not None
+                      else f"{len(fluid.lids)} moving sides")
     if abs(lx - ly) > SQUARE_RTOL * max(lx, ly):
         raise f.error("table", f"a case {name} describes: a square cavity", f"domain {lx} x {ly}")
     if fluid.kinematic_viscosity <= 0:
