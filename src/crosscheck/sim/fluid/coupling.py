@@ -13,7 +13,9 @@ One coupled step (``FluidState.step`` calls the pieces in this order):
    window around the body) joined with the scene's static boundary, with the body's rigid
    velocity on every face and sample it covers or cuts. Advection, redistancing and the face
    states of the step use this boundary.
-2. ``predict(dt)``: gravity on the body, ``V* = V + g dt``.
+2. ``predict(dt)``: gravity on the body, ``V* = V + g dt``; with a viscous fluid the previous
+   pressure then acts on fluid and body (``pressure.apply_pressure_coupled``, the incremental
+   projection: the solve in 4 is for the increment).
 3. (viscous fluids) ``viscous_exchange``: the viscous step sees the body as a no-slip wall moving
    at ``V*`` (ghost fluid, viscosity.py); the momentum it puts into the fluid through that wall is
    taken from the body (an explicit, partitioned exchange: exact momentum balance, stable while

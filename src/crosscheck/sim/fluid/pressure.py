@@ -457,6 +457,45 @@ def _body_response(jk, jv, dinv, x):
     return out
 
 
+def unknown_cells(phi: np.ndarray, u_frac: np.ndarray, v_frac: np.ndarray) -> np.ndarray:
+    """The cells ``build_system`` makes unknowns (bool (nx, ny)): fluid (``phi < 0``) with at
+    least one face not entirely solid."""
+    open_face = ((u_frac[:-1] < 1.0) | (u_frac[1:] < 1.0)
+                 | (v_frac[:, :-1] < 1.0) | (v_frac[:, 1:] < 1.0))
+    return (phi < 0.0) & open_face
+
+
+def fill_new_cells(p: np.ndarray, now: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """The pressure with a value for each cell that is an unknown ``now`` and was not
+    ``before`` (a cell a moving body uncovered, whose pressure the last solve wrote as 0): the
+    mean of its neighbours that were unknowns, 0 with none. Applying the previous pressure's
+    gradient (the incremental projection) across such a cell's faces would otherwise throw the
+    whole previous pressure at them: measured, the body's velocity jumped."""
+    new = now & ~before
+    if not new.any():
+        return p
+    known = np.pad(np.where(before, p, 0.0), 1)
+    count = np.pad(before.astype(float), 1)
+    total = known[:-2, 1:-1] + known[2:, 1:-1] + known[1:-1, :-2] + known[1:-1, 2:]
+    n = count[:-2, 1:-1] + count[2:, 1:-1] + count[1:-1, :-2] + count[1:-1, 2:]
+    out = p.copy()
+    out[new] = np.where(n[new] > 0.0, total[new] / np.maximum(n[new], 1.0), 0.0)
+    return out
+
+
+def apply_pressure_coupled(pt, phi, bnd, u, v, ustate, vstate, coupling) -> None:
+    """The scaled pressure ``pt``'s gradient on the fluid's faces and its force on the coupled
+    body (``D J^T pt``, the same discrete force as the coupled solve's), both on the step's
+    geometry: the incremental projection's start with a coupled body."""
+    unknown = unknown_cells(phi, bnd.u_frac, bnd.v_frac)
+    index = -np.ones(unknown.shape, np.int64)
+    n = int(np.count_nonzero(unknown))
+    index[unknown] = np.arange(n)
+    jk, jv, dinv = coupling.rows(index)
+    apply_pressure(pt, phi, u, v, ustate, vstate)
+    coupling.apply_impulse(_body_response(jk, jv, dinv, gather(index, pt, n)))
+
+
 def project_coupled(phi, bnd, u, v, ustate, vstate, p_guess, tol, coupling, max_iter=2000):
     """``project`` with the coupled body's velocity as unknowns (Batty, Bertails and Bridson
     2007; coupling.py): the solid faces and samples of the body carry its predicted velocity

@@ -41,9 +41,12 @@ from crosscheck.sim.fluid.forces import ForceProbe
 from crosscheck.sim.fluid.particles import Particles
 from crosscheck.sim.fluid.pressure import (
     apply_pressure,
+    apply_pressure_coupled,
     classify_faces,
+    fill_new_cells,
     project,
     project_coupled,
+    unknown_cells,
 )
 from crosscheck.sim.fluid.viscosity import THETA_MIN as VISCOUS_THETA_MIN
 from crosscheck.sim.fluid.viscosity import diffuse_implicit, viscous_dissipation
@@ -179,10 +182,13 @@ class FluidState:
         # starts from the previous pressure gradient and projects with the increment, so a steady
         # state does not depend on the step and the no-slip walls hold after the projection
         self.implicit = spec.viscosity_solver == "implicit"
-        # (not with a coupled body: the previous pressure's force on the body would have to be
-        # applied with the geometry of the new step; the plain projection needs none of that)
-        self.incremental = (self.implicit and spec.kinematic_viscosity > 0.0
-                            and self.coupling is None)
+        # With a coupled body the previous pressure acts on the body too, on the new step's
+        # geometry (pressure.apply_pressure_coupled). Without it the projection's tangential
+        # slip dt dp/ds at the body's wall made the coupled step first order with a large
+        # constant: a disc settling at Re ~ 14 fell 11.6 % too fast at CFL 0.2; 2.5 % too slowly
+        # with it (benchmarks/results/sedimentation_frame.md).
+        self.incremental = self.implicit and spec.kinematic_viscosity > 0.0
+        self.pressure_cells = None   # the last solve's unknowns (a coupled body uncovers cells)
         self.p_increment = np.zeros((self.nx, self.ny))
         self.no_dist = np.zeros((1, 1))
         # the central scheme: Eulerian convection, Adams-Bashforth 2 with the previous step's term
@@ -333,7 +339,15 @@ class FluidState:
             impose(un, vn, self.ustate, self.vstate, bnd)   # before viscosity: its wall velocity
             nu = spec.kinematic_viscosity
             scale = dt / (spec.density * dx)
-            if self.incremental:
+            if self.incremental and coupling is not None:
+                cells = unknown_cells(self.phi, bnd.u_frac, bnd.v_frac)
+                if self.pressure_cells is not None:
+                    self.p = fill_new_cells(self.p, cells, self.pressure_cells)
+                self.pressure_cells = cells
+                apply_pressure_coupled(self.p * scale, self.phi, bnd, un, vn, self.ustate,
+                                       self.vstate, coupling)
+                impose(un, vn, self.ustate, self.vstate, bnd)   # the body's velocity after it
+            elif self.incremental:
                 apply_pressure(self.p * scale, self.phi, un, vn, self.ustate, self.vstate)
             if nu > 0.0:
                 k_total = nu * dt / (dx * dx)
@@ -343,13 +357,16 @@ class FluidState:
                     # Adams-Bashforth 2); backward Euler after a semi-Lagrangian trace, whose
                     # explicit half would belong at the departure points
                     cn = self.scheme.advection == "central"
+                    # with a coupled body the cut faces keep the previous pressure's gradient
+                    # (viscosity.diffuse_implicit)
+                    keep = coupling is not None and self.incremental
                     self.last_viscous_iterations = (
                         diffuse_implicit(un, self.ustate, bnd.u_dist if walls else None,
                                          bnd.u_solid, k_total, 0, self.gu,
-                                         self.u if cn else None)
+                                         self.u if cn else None, keep)
                         + diffuse_implicit(vn, self.vstate, bnd.v_dist if walls else None,
                                            bnd.v_solid, k_total, 1, self.gv,
-                                           self.v if cn else None))
+                                           self.v if cn else None, keep))
                     if coupling is not None and walls:
                         coupling.viscous_exchange(un, vn, nu, dt, VISCOUS_THETA_MIN)
                 else:
@@ -362,10 +379,16 @@ class FluidState:
             timers["forces"] += t3 - t2
 
             if coupling is not None:
-                pt = self.p * scale
+                # the increment with a viscous fluid (warm-started from the last one), else the
+                # pressure itself
+                pt = (self.p_increment if self.incremental else self.p) * scale
                 its, _, _ = project_coupled(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
                                             spec.pressure_tolerance, coupling)
-                self.p = pt / scale
+                if self.incremental:
+                    self.p_increment = pt / scale
+                    self.p = self.p + self.p_increment
+                else:
+                    self.p = pt / scale
                 impose(un, vn, self.ustate, self.vstate, bnd)   # the body's new velocity
                 coupling.finish(dt)
             elif self.incremental:

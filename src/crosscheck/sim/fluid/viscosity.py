@@ -107,23 +107,31 @@ def build_viscous(q, state, dist, use_dist, qsolid, k, normal_axis,
 
 
 @njit(cache=True)
-def _scatter_solid(q, index, x, dist, use_dist, qsolid, state):
+def _scatter_solid(q, index, x, dist, use_dist, qsolid, state, write_inside):
     n0, n1 = q.shape
     for i in range(n0):
         for j in range(n1):
             kk = index[i, j]
             if kk >= 0:
                 q[i, j] = x[kk]
-            elif use_dist and dist[i, j] < 0.0 and state[i, j] != SOLID:
+            elif write_inside and use_dist and dist[i, j] < 0.0 and state[i, j] != SOLID:
                 q[i, j] = qsolid[i, j]
 
 
-def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None):
+def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None,
+                     keep_cut_inside=False):
     """One viscous step of the component ``q`` in place: backward Euler, or with ``q_old`` (the
     component at the start of the step) Crank-Nicolson, ``(I - k/2 L) q = q + k/2 L q_old``,
     the explicit half through the same ghost-fluid stencil. ``dist`` the solid's signed
     distance at the samples (None: staircase walls), ``qsolid`` the solid's velocity component
-    there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``. Returns the CG iterations."""
+    there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``. Returns the CG iterations.
+
+    The cut faces whose sample lies inside the solid are not unknowns; they take the solid's
+    velocity, unless ``keep_cut_inside``: then they keep their value. The coupled incremental
+    step needs that: it has put the previous pressure's gradient on them (the open part's flux,
+    which the projection moves), and writing the body's velocity over it made each increment put
+    it back, so the carried pressure drifted with the number of steps (a disc in Stokes flow
+    settled 27 % too fast, 50 % with half the step; docs/fluid.md)."""
     use_dist = dist is not None
     d = dist if use_dist else np.zeros((1, 1))
     kk = k if q_old is None else 0.5 * k
@@ -146,7 +154,7 @@ def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None):
     bmax = float(np.max(np.abs(b)))
     its = pcg(diag, xm, xp, ym, yp, w, w, w, w, b, x, max(VISCOUS_TOLERANCE * bmax, 1e-300),
               1000)
-    _scatter_solid(q, index, x, d, use_dist, qsolid, state)
+    _scatter_solid(q, index, x, d, use_dist, qsolid, state, not keep_cut_inside)
     return its
 
 
