@@ -68,7 +68,7 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     gives the terminal speed (0.0566 m/s, Re 14.2; insensitive to the frame's length: 0.06 %
     with the channel twice as long up- and downstream). The coupled disc released from rest in
     a channel 12 cm tall, its mean speed from 0.5 to 1 s (benchmarks/results/
-    sedimentation_frame.md): about 3.5 % below the frame's at the steps 0.0005 and 0.002 alike,
+    sedimentation_frame.md): about 4 % below the frame's at the steps 0.0005 and 0.002 alike,
     the coupled step's remaining error at this grid (the speed wanders by about 1 % as cell rows
     open behind the body). Bound 6 %: a wrong added mass, pressure or viscous force on the body
     moves it by more.
