@@ -86,3 +86,44 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     assert fine["stopped"] is None and coarse["stopped"] is None
     assert fine["u_mean"] == pytest.approx(terminal, rel=0.06)
     assert coarse["u_mean"] == pytest.approx(fine["u_mean"], rel=0.025)
+
+
+def test_unknown_cells_are_the_pressure_solves_unknowns():
+    """``pressure.unknown_cells`` (the incremental coupled step's bookkeeping) writes the
+    criterion of ``build_system`` a second time, in NumPy: they must agree cell for cell, on cut
+    cells (a circle) and with a free surface crossing it."""
+    from crosscheck.scene.shapes import Circle, Placed
+    from crosscheck.sim.fluid import pressure as P
+    from crosscheck.sim.fluid.boundary import SolidBoundary
+
+    nx, ny, dx = 40, 30, 0.025
+    bnd = SolidBoundary.from_shapes([Placed(Circle(0.2), np.array([0.5, 0.37]), 0.0)], nx, ny,
+                                    dx, np.zeros(4, bool))
+    y = (np.arange(ny) + 0.5) * dx
+    phi = np.broadcast_to(y - 0.4, (nx, ny)).copy()   # water below y = 0.4, through the circle
+    zeros_u, zeros_v = np.zeros(bnd.u_frac.shape), np.zeros(bnd.v_frac.shape)
+    index = P.build_system(phi, bnd.u_frac, bnd.v_frac, zeros_u, zeros_v, zeros_u, zeros_v)[0]
+    cells = P.unknown_cells(phi, bnd.u_frac, bnd.v_frac)
+    assert np.any(bnd.cells) and np.any((phi < 0) & bnd.cells)   # the case is not trivial
+    assert np.array_equal(cells, index >= 0)
+
+
+def test_a_cell_the_body_uncovers_takes_its_neighbours_pressure():
+    """``pressure.fill_new_cells``: a cell that becomes an unknown gets the mean of its
+    neighbours that were unknowns (exact for a linear pressure at a cell with all four); the
+    others keep theirs; with no known neighbour, 0."""
+    from crosscheck.sim.fluid.pressure import fill_new_cells
+
+    x, y = np.meshgrid(np.arange(6.0), np.arange(5.0), indexing="ij")
+    p_true = 3.0 * x - 2.0 * y + 7.0
+    before = np.ones((6, 5), bool)
+    before[2, 2] = before[0, 0] = False            # covered by the body at the last solve
+    before[4:, 3:] = False                         # and a block: [5, 4] has no known neighbour
+    p = np.where(before, p_true, 0.0)              # what the last solve wrote
+    now = np.ones((6, 5), bool)
+    out = fill_new_cells(p, now, before)
+    assert out[2, 2] == pytest.approx(p_true[2, 2], abs=1e-12)          # four neighbours
+    assert out[0, 0] == pytest.approx((p_true[1, 0] + p_true[0, 1]) / 2)  # two
+    assert out[5, 4] == 0.0
+    assert np.array_equal(out[before], p[before])
+    assert fill_new_cells(p, before, before) is p   # nothing new: untouched

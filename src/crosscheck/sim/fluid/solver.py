@@ -344,8 +344,8 @@ class FluidState:
                 if self.pressure_cells is not None:
                     self.p = fill_new_cells(self.p, cells, self.pressure_cells)
                 self.pressure_cells = cells
-                apply_pressure_coupled(self.p * scale, self.phi, bnd, un, vn, self.ustate,
-                                       self.vstate, coupling)
+                apply_pressure_coupled(self.p * scale, self.phi, un, vn, self.ustate,
+                                       self.vstate, coupling, cells)
                 impose(un, vn, self.ustate, self.vstate, bnd)   # the body's velocity after it
             elif self.incremental:
                 apply_pressure(self.p * scale, self.phi, un, vn, self.ustate, self.vstate)
