@@ -32,8 +32,9 @@ browser:
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium >/dev/null; } || \
 	  echo "make: could not install chromium: the browser test will say so"
 
+# --durations: CI's log lists the slowest tests (the run is held to 15 minutes on 2 cores)
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -n $(WORKERS) -q
+	$(BIN)/python -m pytest -n $(WORKERS) -q --durations=30
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rigid.py
