@@ -31,8 +31,10 @@ def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
     92) and 1.005 against the concentric tube of the box's half width (Kelvin's bound, (1 +
     (R / b)^2) / (1 - (R / b)^2), b = 1 m). Measured: 3.2862 m/s^2 (C_a = 0.985) at the case's
     R / dx = 2.4, 3.3372 (0.940) at 4, 3.3632 (0.917) at 6.4 (benchmarks/results/
-    settling_disc.md; 3.2685 / 3.2864 / 3.3084 before the incremental coupled projection): off
-    further as the grid is refined, not explained, so this holds at the case's grid only.
+    settling_disc.md; 3.2685 / 3.2864 / 3.3084 before the incremental coupled projection). The
+    parabola through three steps carries the viscous force that grows over them (the first step
+    alone: 3.213 / 3.214 / 3.243, C_a 1.053 / 1.052 / 1.025, docs/fluid.md), so the estimate
+    depends on the step and the grid, and this holds at the case's grid.
     Tolerance 3 % on the acceleration (C_a within 0.95-1.06): the kinetic energy the projection
     weights is first order at cut faces, 1-3 % on the added mass of a cylinder in a closed box
     (docs/fluid.md). MuJoCo starts at
@@ -49,6 +51,15 @@ def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
     assert a0 == pytest.approx(acc["added_mass"], rel=0.03)
     c_a = ((2000.0 - 1000.0) * G / a0 - 2000.0) / 1000.0
     assert 0.95 < c_a < 1.06
+    # The first step alone is the added mass, before any viscous history acts (the coupled
+    # projection from rest is the potential-flow impulse response): measured 3.2131 m/s^2, C_a
+    # 1.053, the same at a step of 0.25 ms to 4e-4; Kelvin's bound for the box 1.005. The
+    # projection's kinetic energy is first order at cut faces: C_a within 1.0-1.07. Without the
+    # body's term in the solve (no added mass) the step would give g / 2.
+    t, vy = np.asarray(rec.t), np.asarray(rec.series["body_vy.disc"])
+    first = -(vy[1] - vy[0]) / (t[1] - t[0])
+    c_a_first = ((2000.0 - 1000.0) * G / first - 2000.0) / 1000.0
+    assert 1.0 < c_a_first < 1.07
     # the difference MuJoCo cannot have, measured: 1.5 x (to the same 3 %)
     assert acc["stateless"] / a0 == pytest.approx(1.5, rel=0.03)
     assert acc["stateless"] == pytest.approx(G / 2)
