@@ -69,8 +69,9 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     with the channel twice as long up- and downstream). The coupled disc released from rest in
     a channel 12 cm tall, its mean speed from 0.5 to 1 s (benchmarks/results/
     sedimentation_frame.md): about 4 % below the frame's at the steps 0.0005 and 0.002 alike,
-    the coupled step's remaining error at this grid (the speed wanders by about 1 % as cell rows
-    open behind the body). Bound 6 %: a wrong added mass, pressure or viscous force on the body
+    the coupled step's remaining error at this grid, from the disc's motion across the grid
+    (-3.3 / -1.9 % at 8 / 16 cells; the speed wanders by about 1 % as cell rows open behind the
+    body; docs/fluid.md). Bound 6 %: a wrong added mass, pressure or viscous force on the body
     moves it by more.
 
     The step: projecting the whole pressure each step, as the coupled step did before, left a
