@@ -8,7 +8,9 @@ estimate of the grid-converged value.
 
     # the committed studies: sedimentation.json (8, 12, 16 at the step 0.02 or the CFL limit,
     # 8:semi_lagrangian, 8:cfl0.5, 8:offset, 12:offset) and, with --tag _axis, the grid study
-    # at dt = 0.16 dx (8:dt0.02 12:dt0.01333 16:dt0.01) and the step at 8 (8:dt0.01 8:dt0.005)
+    # at dt = 0.16 dx (8:dt0.02 12:dt0.01333 16:dt0.01) and the step at 8 (8:dt0.01 8:dt0.005);
+    # with --tag _offaxis the releases off the axis re-measured with the incremental coupled
+    # projection (8:offset 12:offset 8:offset+dt0.01)
 
 The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
 public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
