@@ -186,10 +186,10 @@ def markdown(result: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for f in result["frames"]:
-        lines.append(f"| {f.get('integrator', 'central')} | {f.get('cfl', 0.5):g} | "
+        lines.append(f"| {f['integrator']} | {f['cfl']:g} | "
                      f"{f['speed']:g} | {f['re']:.2f} | {f['cells']} | {f['drag']:.5g} | "
                      f"{f['drag_over_weight']:.4f} | {f['cd']:.3f} | {f['wall_s']:.0f} |")
-    same = result.get("terminal_speed_advected", {})
+    same = result["terminal_speed_advected"]
     lines += ["", "Terminal speed where the drag equals the weight: " + ", ".join(
         f"{c} cells/d **{u:.5f} m/s, Re {u * D / NU:.2f}**" if u is not None
         else f"{c} cells/d -" for c, u in uts.items())]
@@ -238,32 +238,33 @@ def main() -> None:
     args = ap.parse_args()
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
-    schemes = [("central", 0.5)] + ([("maccormack", args.advected_cfl)]
-                                    if args.advected_cfl > 0 else [])
-    for integrator, cfl in schemes:
-        for cells in args.frame_cells if integrator == "central" else args.advected_cells:
+    # (advection, CFL, grids) of the frame runs
+    schemes = [("central", 0.5, args.frame_cells)] + (
+        [("maccormack", args.advected_cfl, args.advected_cells)] if args.advected_cfl > 0 else [])
+    for integrator, cfl, grids in schemes:
+        for cells in grids:
             for speed in args.speeds:
                 result["frames"].append(frame_run(speed, cells, integrator, cfl))
                 print(json.dumps(result["frames"][-1]), flush=True)
 
-    def terminal(integrator: str) -> dict:
+    def terminal(integrator: str, grids: list[int]) -> dict:
         # the terminal speed at each grid (a coupled run is compared with its own grid's)
-        grids = args.frame_cells if integrator == "central" else args.advected_cells
         return {str(c): terminal_speed([f for f in result["frames"] if f["cells"] == c
                                         and f["integrator"] == integrator])
                 for c in grids}
 
-    result["terminal_speed"] = terminal("central")
-    if args.advected_cfl > 0:
-        result["terminal_speed_advected"] = terminal("maccormack")
+    result["terminal_speed"] = terminal("central", args.frame_cells)
+    result["terminal_speed_advected"] = (terminal("maccormack", args.advected_cells)
+                                         if args.advected_cfl > 0 else {})
     for spec in args.coupled:
         box, cells, step, *rest = spec.split(":")
         result["coupled"].append(coupled_run(int(cells), float(step), box, *rest))
         print(json.dumps(result["coupled"][-1]), flush=True)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "sedimentation_frame.json").write_text(json.dumps(result, indent=2))
-    (OUT / "sedimentation_frame.md").write_text(markdown(result))
-    print(markdown(result))
+    text = markdown(result)
+    (OUT / "sedimentation_frame.md").write_text(text)
+    print(text)
 
 
 if __name__ == "__main__":
