@@ -155,7 +155,9 @@ def chipmunk_record(fns, space, dt, k, bodies, cogs, com, angle, vel, omega):
     """Sample 0 is read; then k steps and a read per sample, straight into the Trajectory's
     arrays. Returns the number of samples before the first one holding a non-finite value."""
     step = fns[0]
-    chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, 0)
+    # np.int64: a literal 0 would compile chipmunk_read a second time (sim/_jit.py, "Literal
+    # arguments")
+    chipmunk_read(fns, bodies, cogs, com, angle, vel, omega, np.int64(0))
     for i in range(1, com.shape[0]):
         for _ in range(k):
             call_v_pd(step, space, dt)

@@ -81,7 +81,7 @@ def _sweep_axis(lo, hi):
     prunes best along it. A pure function of the boxes, so the pairs' order depends on the
     state only, never on what was detected before."""
     c = lo.shape[0]
-    best = 0
+    best = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     best_var = -1.0
     for r in range(lo.shape[1]):
         mean = 0.0

@@ -166,7 +166,7 @@ def closed_form_pair3d(ka, kb, size, wpos, wrot, ca, cb, margin, man):
 # rest face on face, where no edge axis separates near the faces and the routine skips its edge
 # query (the Gauss-map loop over 12 x 12 edge pairs). Both only skip work whose outcome is known:
 # the result is the general routine's, bit for bit (tests/collide/test_box_box.py). The loop
-# below writes this out and inlines the routine (polytope_pair) on the geometry's arrays.
+# below writes this out and calls the routine (polytope_pair) on the geometry's arrays.
 @njit(**INLINE)
 def box_box(geom, size, wpos, wrot, ca, cb, margin, man, scratch):
     """Manifold of box colliders ca and cb (polytope_polytope's, with its box shortcuts)."""

@@ -322,7 +322,7 @@ def plane_box(plane_normal, plane_offset, wpos, wrot, size, c, g, margin, man):
     nx, ny, nz = plane_normal[g, 0], plane_normal[g, 1], plane_normal[g, 2]
     offset = plane_offset[g]
     set_normal(man, -nx, -ny, -nz)
-    k = 0
+    k = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     for v in range(8):
         sx = size[c, 0] if v & 4 else -size[c, 0]
         sy = size[c, 1] if v & 2 else -size[c, 1]
@@ -341,7 +341,7 @@ def plane_collider(geom, wpos, wrot, c, g, margin, man):
     offset = geom.plane_offset[g]
     set_normal(man, -nx, -ny, -nz)
     kind = geom.kind[c]
-    k = 0
+    k = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     if kind == SPHERE:
         r = geom.size[c, 0]
         k = plane_point(man, k, nx, ny, nz, offset, wpos[c, 0] - r * nx, wpos[c, 1] - r * ny,
@@ -402,7 +402,7 @@ def _plane_cylinder(geom, wpos, wrot, c, nx, ny, nz, offset, margin, man):
     s = 1.0 if na > 0.0 else -1.0
     lx, ly, lz = wpos[c, 0] - s * half * ax, wpos[c, 1] - s * half * ay, wpos[c, 2] - s * half * az
     hx, hy, hz = wpos[c, 0] + s * half * ax, wpos[c, 1] + s * half * ay, wpos[c, 2] + s * half * az
-    k = 0
+    k = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     k = plane_point(man, k, nx, ny, nz, offset, lx + r * ux, ly + r * uy, lz + r * uz, margin, 0)
     k = plane_point(man, k, nx, ny, nz, offset, lx + r * vx, ly + r * vy, lz + r * vz, margin, 1)
     k = plane_point(man, k, nx, ny, nz, offset, lx - r * ux, ly - r * uy, lz - r * uz, margin, 2)

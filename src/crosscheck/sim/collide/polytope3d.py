@@ -200,7 +200,7 @@ def _cross_axis(edge, sep, t1, t2, r1j, r2j, ha1, ha2, hb1, hb2, ri1, ri2):
     return edge, sep
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def box_box_bounds(wpos, wrot, size, ca, cb):
     """Two boxes' 15 separating axes (Gottschalk's OBB test, Ericson 4.4.1) in closed form:
     (largest separation over the 6 face axes and the 9 edge-cross axes, largest separation over
@@ -268,7 +268,7 @@ def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, edge_bound
     cannot change the outcome (no edge axis separates beyond the margin, none wins over the
     faces) the query, the routine's largest part, is skipped. The result is the same.
     (:func:`polytope_pair` with the geometry's and the scratch's arrays: detect.py's loop calls
-    that inlined.)"""
+    that directly.)"""
     return polytope_pair(geom.vertices, geom.face_normal, geom.face_offset, geom.polytope,
                          geom.poly_vert_start, geom.poly_vert_count, geom.poly_face_start,
                          geom.poly_face_count, geom.poly_edge_start, geom.poly_edge_count,
@@ -277,12 +277,14 @@ def polytope_polytope(geom, wpos, wrot, ca, cb, margin, man, scratch, edge_bound
                          man, scratch, edge_bound)
 
 
-# polytope_pair takes the geometry's arrays, not the Geometry: inlined into detect.py's loop, a
-# NamedTuple handed to inlined code is copied with an atomic reference count per field (the
-# Geometry has about 45), and every field read costs another. The small Manifold and scratch
-# are read once per call into local names. (At most 30 arguments: CPython passes a longer call
-# as *args, which numba's inliner refuses.)
-@njit(**INLINE)
+# polytope_pair takes the geometry's arrays, not the Geometry: a NamedTuple handed to another
+# compiled function is copied with an atomic reference count per field (the Geometry has about
+# 45), and every field read costs another. The small Manifold and scratch are read once per call
+# into local names. It is a call from detect.py's pair loop, not inlined there, as are
+# box_box_bounds and face_after_edge: inlined, numba's IR inliner made that loop's compile cost
+# 92 s of its 155 (the inliner's cost grows with the size of the function it inlines into;
+# docs/inhouse.md, "Compile time"), and the call costs nothing measurable on a pair's 0.1-0.7 us.
+@njit(**JIT)
 def polytope_pair(vertices, face_normal, face_offset, polytope, poly_vert_start, poly_vert_count,
                   poly_face_start, poly_face_count, poly_edge_start, poly_edge_count,
                   poly_centroid, edge_verts, edge_faces, face_verts, fv_start, fv_count, wpos,
@@ -349,7 +351,7 @@ def polytope_pair(vertices, face_normal, face_offset, polytope, poly_vert_start,
 # which no point of one body inside the other exceeds, so a deeper reading along the face normal
 # is a point near the face's rim measured the wrong way (it would be pushed out along the face
 # normal, where a side face is nearer); the edge row holds the overlap itself.
-@njit(**INLINE)
+@njit(**JIT)
 def face_after_edge(polytope, poly_vert_count, poly_face_start, poly_face_count, face_verts,
                     fv_start, fv_count, ca, cb, margin, man, scratch, edge_depth):
     """After :func:`polytope_pair` returned an edge contact of depth ``edge_depth`` for (A, B)
@@ -444,7 +446,7 @@ def _face_contact(nr, fr, fr0, ni, n_fi, fi0, vr, vi, face_verts, fv_start, fv_c
     else:
         m_normal[0], m_normal[1], m_normal[2] = nx, ny, nz
     head = ((1 << 24) if flipped else 0) | ((fr & 0xFF) << 16) | ((fi & 0xFF) << 8)
-    count = 0
+    count = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     for k in range(n_poly):
         gap = nx * clip_in[k, 0] + ny * clip_in[k, 1] + nz * clip_in[k, 2] - off
         if gap > margin or -gap > deepest or count >= MAX_CANDIDATES:

@@ -159,7 +159,8 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle,
     T[:] = 0.0
     if gravity is not None:
         apply_gravity(bodies, gravity, F)
-    accumulate(springs, drag, loads, control, x, angle, v, w, F, T)
+    if springs is not None or drag is not None or loads is not None or control is not None:
+        accumulate(springs, drag, loads, control, x, angle, v, w, F, T)
     if contacts is not None:  # a force-level contact model's forces (contact_forces.py)
         contact_wrench2d(bodies, contacts, x, angle, P, L, v, w, F, T)
 

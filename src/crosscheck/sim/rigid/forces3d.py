@@ -252,9 +252,12 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
             fy += gy
             fz += gz
         # accumulate's per-body terms, fused into this pass (the same helper, the same order)
-        F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2] = body_wrench(
-            drag, control, i, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz)
-    accumulate(springs, None, loads, None, x, R, v, w, F, T)
+        if drag is not None or control is not None:
+            fx, fy, fz, tx, ty, tz = body_wrench(drag, control, i, vx, vy, vz, wx, wy, wz,
+                                                 fx, fy, fz, tx, ty, tz)
+        F[i, 0], F[i, 1], F[i, 2], T[i, 0], T[i, 1], T[i, 2] = fx, fy, fz, tx, ty, tz
+    if springs is not None or loads is not None:
+        accumulate(springs, None, loads, None, x, R, v, w, F, T)
     if contacts is not None:  # a force-level contact model's forces (contact_forces.py)
         contact_wrench3d(bodies, contacts, x, q, P, L, v, w, F, T)
 

@@ -264,7 +264,7 @@ def _apply3d(bodies, buf, rows, k, j, dl, lin, ang):
         ang[b, 2] += rows.resp_b[k, j, 2] * dl
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
     """Projected Gauss-Seidel over solver rows 0..m-1: normal ``lam_n >= 0`` with relative motion
     along n at least ``target_n``, friction ``(lam_t1, lam_t2)`` towards ``target_t`` in the disc
@@ -335,7 +335,7 @@ def resting_forces3d(bodies, rc, x, q, L, v, w, F, T):
         lin[i, 0], lin[i, 1], lin[i, 2] = F[i, 0] * im, F[i, 1] * im, F[i, 2] * im
         gx, gy, gz = _cross(w[i, 0], w[i, 1], w[i, 2], L[i, 0], L[i, 1], L[i, 2])
         ang[i, 0], ang[i, 1], ang[i, 2] = _mat(iinv, i, T[i, 0] - gx, T[i, 1] - gy, T[i, 2] - gz)
-    m = 0
+    m = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     for r in range(buf.count[0]):
         slot = table_find(active, cur, buf.feature[r])
         if slot < 0 and table_find(active, cur, pair_key(buf.feature[r])) < 0:
@@ -426,7 +426,7 @@ def collision_impulses3d(bodies, rc, x, q, P, L):
     # the velocities before, kept in P / L's units for the update at the end
     tol_c = par[R_TOL_C]
     bounce = par[R_BOUNCE]
-    m = 0
+    m = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     colliding = 0
     for r in range(buf.count[0]):
         if buf.depth[r] < -tol_c:
@@ -584,7 +584,7 @@ def _apply2d(bodies, buf, rows, k, j, dl, lin, ang):
         ang[b] += rows.resp_b[k, j] * dl
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
     lam = rows.lam
     for k in range(m):
@@ -640,7 +640,7 @@ def resting_forces2d(bodies, rc, x, angle, L, v, w, F, T):
         lin[i, 0] = F[i, 0] * bodies.inv_mass[i]
         lin[i, 1] = F[i, 1] * bodies.inv_mass[i]
         ang[i] = T[i] * bodies.inv_moment[i]
-    m = 0
+    m = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     for r in range(buf.count[0]):
         slot = table_find(active, cur, buf.feature[r])
         if slot < 0 and table_find(active, cur, pair_key(buf.feature[r])) < 0:
@@ -702,7 +702,7 @@ def collision_impulses2d(bodies, rc, x, angle, P, L):
         w[i] = L[i] * bodies.inv_moment[i]
     tol_c = par[R_TOL_C]
     bounce = par[R_BOUNCE]
-    m = 0
+    m = np.int64(0)  # not a literal 0 (sim/_jit.py: "Literal arguments")
     colliding = 0
     for r in range(buf.count[0]):
         if buf.depth[r] < -tol_c:
@@ -808,7 +808,7 @@ def build_normal_matrix3d(bodies, buf, rows, m, A):
                     A[j, i] += v
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def friction_sweep3d(bodies, buf, rows, m, lin, ang):
     """One Gauss-Seidel sweep over the friction rows (the normal forces fixed): the largest
     change."""
@@ -916,7 +916,7 @@ def build_normal_matrix2d(bodies, buf, rows, m, A):
                     A[j, i] += v
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def friction_sweep2d(bodies, buf, rows, m, lin, ang):
     lam = rows.lam
     change = 0.0

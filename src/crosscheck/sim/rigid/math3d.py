@@ -88,7 +88,7 @@ def quat_rate(q, w, dq):
         dq[i, 0], dq[i, 1], dq[i, 2], dq[i, 3] = quat_rate_of(q, i, w[i, 0], w[i, 1], w[i, 2])
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def skew(r0, r1, r2, out, o_r, o_c):
     """out[o_r:o_r+3, o_c:o_c+3] = [r]x (the cross-product matrix)."""
     out[o_r + 0, o_c + 0] = 0.0

@@ -89,7 +89,7 @@ def advance_symplectic_euler(bodies, gravity, springs, drag, loads, control, con
         for i in range(n):
             kick(i, h, P, L, F, T)
             drift_com(bodies, i, h, x, P)
-            free_rotation(bodies, q, L, i, h, False)
+            free_rotation(bodies, q, L, i, h, np.bool_(False))
 
 
 @njit(**JIT)
@@ -140,7 +140,7 @@ def advance_verlet(bodies, gravity, springs, drag, loads, control, contacts,
                 Pp[i, c] = 2.0 * P[i, c] - p_old
                 Lp[i, c] = 2.0 * L[i, c] - l_old
             drift_com(bodies, i, h, x, P)
-            free_rotation(bodies, q, L, i, h, True)
+            free_rotation(bodies, q, L, i, h, np.bool_(True))
         evaluate(bodies, gravity, springs, drag, loads, control, contacts,
                  x, q, Pp, Lp, R, v, w, F, T)
         for i in range(n):

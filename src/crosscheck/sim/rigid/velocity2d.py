@@ -145,7 +145,7 @@ def step2d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
                 apply_accumulated(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia)
                 for _ in range(st.iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               1.0 / hs, True, contact_soft, static_soft, st.push_speed)
+                               1.0 / hs, np.bool_(True), contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
             drift(bodies, x, angle, P, L, hs)
             if count > 0:
@@ -154,7 +154,7 @@ def step2d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
                 body_velocities(bodies, P, L, sc)
                 for _ in range(st.relax_iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               1.0 / hs, False, contact_soft, static_soft, st.push_speed)
+                               1.0 / hs, np.bool_(False), contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
         if count > 0:
             body_velocities(bodies, P, L, sc)

@@ -190,7 +190,7 @@ def drift(bodies, rotation, x, q, P, L, sc, h):
         drift_com(bodies, i, h, x, P)
     if rotation == ROTATION_SPLITTING:
         for i in range(n):
-            free_rotation(bodies, q, L, i, h, False)
+            free_rotation(bodies, q, L, i, h, np.bool_(False))
     else:
         kinematics(bodies, q, P, L, sc.R, sc.ev, sc.ew)  # w from the new L at the start q
         for i in range(n):
@@ -262,7 +262,7 @@ def step3d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
                 apply_accumulated(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia)
                 for _ in range(st.iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               1.0 / hs, True, contact_soft, static_soft, st.push_speed)
+                               1.0 / hs, np.bool_(True), contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
             drift(bodies, st.rotation, x, q, P, L, sc, hs)
             if count > 0:
@@ -271,7 +271,7 @@ def step3d(bodies, gravity, springs, drag, loads, control, contacts, rows, st, s
                 body_velocities(bodies, q, P, L, sc)
                 for _ in range(st.relax_iterations):
                     soft_sweep(contacts, rows, count, sc.v, sc.w, inv_mass, sc.inv_inertia,
-                               1.0 / hs, False, contact_soft, static_soft, st.push_speed)
+                               1.0 / hs, np.bool_(False), contact_soft, static_soft, st.push_speed)
                 write_back(bodies, P, L, sc)
         if count > 0:
             velocities(bodies, P, L, sc)  # (q as at the last sub-step's world_inertia)
