@@ -264,6 +264,9 @@ def _apply3d(bodies, buf, rows, k, j, dl, lin, ang):
         ang[b, 2] += rows.resp_b[k, j, 2] * dl
 
 
+# pgs3d and friction_sweep3d are calls from solve3d, not inlined into it: the one runs once per
+# solve, the other once per outer iteration, and the three compile in 19 s where solve3d with
+# both inlined took 31 s (docs/inhouse.md, "Compile time"). The same holds in 2D.
 @njit(**JIT)
 def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
     """Projected Gauss-Seidel over solver rows 0..m-1: normal ``lam_n >= 0`` with relative motion
