@@ -268,15 +268,12 @@ def _apply3d(bodies, buf, rows, k, j, dl, lin, ang):
 # solve, the other once per outer iteration, and the three compile in 19 s where solve3d with
 # both inlined took 31 s (docs/inhouse.md, "Compile time"). The same holds in 2D.
 @njit(**JIT)
-def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
+def pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol):
     """Projected Gauss-Seidel over solver rows 0..m-1: normal ``lam_n >= 0`` with relative motion
     along n at least ``target_n``, friction ``(lam_t1, lam_t2)`` towards ``target_t`` in the disc
-    of radius mu lam_n; lin / ang updated with every change. Returns the sweeps taken."""
+    of radius mu lam_n; lin / ang updated with every change (they hold the effect of ``rows.lam``
+    on entry: solve3d applies it). Returns the sweeps taken."""
     lam = rows.lam
-    for k in range(m):  # the warm start's effect
-        for j in range(3):
-            if lam[k, j] != 0.0 and not applied:
-                _apply3d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
     sweeps = 0
     for it in range(iterations):
         sweeps = it + 1
@@ -588,12 +585,9 @@ def _apply2d(bodies, buf, rows, k, j, dl, lin, ang):
 
 
 @njit(**JIT)
-def pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol, applied=False):
+def pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol):
+    """pgs3d in 2D (lin / ang hold the effect of ``rows.lam`` on entry: solve2d applies it)."""
     lam = rows.lam
-    for k in range(m):
-        for j in range(2):
-            if lam[k, j] != 0.0 and not applied:
-                _apply2d(bodies, buf, rows, k, j, lam[k, j], lin, ang)
     sweeps = 0
     for it in range(iterations):
         sweeps = it + 1
@@ -883,7 +877,7 @@ def solve3d(bodies, buf, rows, m, lin, ang, iterations, tol, dn):
                 return
         if ok:
             return
-    pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol, True)
+    pgs3d(bodies, buf, rows, m, lin, ang, iterations, tol)
 
 
 @njit(**INLINE)
@@ -978,7 +972,7 @@ def solve2d(bodies, buf, rows, m, lin, ang, iterations, tol, dn):
                 return
         if ok:
             return
-    pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol, True)
+    pgs2d(bodies, buf, rows, m, lin, ang, iterations, tol)
 
 
 # -- event bookkeeping (both dimensions) ----------------------------------------------------------
