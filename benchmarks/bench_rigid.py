@@ -227,7 +227,7 @@ for label, model in (("gravity only", base), ("gravity + inert springs, drag, lo
     state = state_from_scene(model, scene)
     RigidSimulation(model, "rk4").advance(state, 1, 1e-3)
     ir = [v for k, v in explicit3d.advance_rk4.inspect_llvm().items()
-          if str(k[1]) == str(numba.typeof(model.gravity))
+          if str(k[1]) == str(numba.typeof(model.kernel_args()[1]))
           and str(k[2]) == str(numba.typeof(model.springs))
           and str(k[3]) == str(numba.typeof(model.drag))][0]
     out[label] = {"ir_lines": ir.count("\n"),
