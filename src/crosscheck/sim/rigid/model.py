@@ -97,7 +97,9 @@ class Control(NamedTuple):
 # (crosscheck.names) says whether it may be given one.
 
 
-# The kernels' gravity argument of a scene without gravity (RigidModel.kernel_args); read only.
+# The kernels' gravity argument of a scene without gravity (RigidModel.kernel_args). Never
+# written, but not flagged read-only: numba types a read-only array apart from a writable one,
+# which would bring back the second specialisation this exists to avoid.
 NO_GRAVITY = np.zeros(0)
 
 
@@ -131,7 +133,7 @@ class RigidModel:
         ``evaluate`` tests at run time), not None. Every other undeclared effect is None and
         compiled out, but gravity costs one multiply-add per body and force pass, while a
         second specialisation on its absence compiles every kernel of a contact model a second
-        time: 1 in 7 of the test suite's cold compile time (docs/inhouse.md, "Compile time").
+        time: about a sixth of the test suite's cold compile time (docs/inhouse.md, "Compile time").
         The results are bit-identical either way: the skipped gravity is skipped."""
         gravity = NO_GRAVITY if self.gravity is None else self.gravity
         return (self.bodies, gravity, self.springs, self.drag, self.loads)
