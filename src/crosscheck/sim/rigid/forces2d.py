@@ -158,9 +158,8 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, angle,
     kinematics(bodies, P, L, v, w)
     F[:] = 0.0
     T[:] = 0.0
-    if gravity is not None:
-        if gravity.shape[0] != 0:  # no gravity: a zero-length array (RigidModel.kernel_args)
-            apply_gravity(bodies, gravity, F)
+    if gravity.shape[0] != 0:  # no gravity: a zero-length array (RigidModel.kernel_args)
+        apply_gravity(bodies, gravity, F)
     if springs is not None or drag is not None or loads is not None or control is not None:
         accumulate(springs, drag, loads, control, x, angle, v, w, F, T)
     if contacts is not None:  # a force-level contact model's forces (contact_forces.py)

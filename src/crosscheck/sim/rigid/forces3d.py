@@ -233,9 +233,9 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
     and loads. Every ``is not None`` test is resolved when
     numba compiles the specialisation for the scene's effects: an undeclared effect, or
     ``control=None``, leaves no code in the step (R is only stored when springs need it).
-    Gravity is the exception: a scene without it passes a zero-length array, tested per body
-    at run time, so that a scene with and one without gravity share one compiled step
-    (RigidModel.kernel_args says why).
+    Gravity is the exception, never None: a scene without it passes a zero-length array,
+    tested per body at run time, so that a scene with and one without gravity share one
+    compiled step (RigidModel.kernel_args says why).
     ``contacts`` is a force-level contact model's argument (contact_forces.py) or None, which
     leaves no contact code in the step.
     """
@@ -249,12 +249,11 @@ def evaluate(bodies, gravity, springs, drag, loads, control, contacts, x, q, P, 
         v[i, 0], v[i, 1], v[i, 2] = vx, vy, vz
         w[i, 0], w[i, 1], w[i, 2] = wx, wy, wz
         fx = fy = fz = tx = ty = tz = 0.0
-        if gravity is not None:
-            if gravity.shape[0] != 0:  # no gravity: a zero-length array (RigidModel.kernel_args)
-                gx, gy, gz = gravity_force(bodies, gravity, i)
-                fx += gx
-                fy += gy
-                fz += gz
+        if gravity.shape[0] != 0:  # no gravity: a zero-length array (RigidModel.kernel_args)
+            gx, gy, gz = gravity_force(bodies, gravity, i)
+            fx += gx
+            fy += gy
+            fz += gz
         # accumulate's per-body terms, fused into this pass (the same helper, the same order)
         if drag is not None or control is not None:
             fx, fy, fz, tx, ty, tz = body_wrench(drag, control, i, vx, vy, vz, wx, wy, wz,
