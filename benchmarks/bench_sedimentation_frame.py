@@ -6,6 +6,7 @@ the DFG benchmark validates (docs/fluid.md), on the same physics.
     PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation_frame.py
         [--frame-cells 4 8 16] [--advected-cfl 0.1] [--advected-cells 4 8]
         [--speeds 0.052 0.058 0.0692] [--coupled tall:4:0.001 ...]
+        [--driven 4:0.002 ...] [--reuse]
 
 The scene has the parameters of Glowinski, Pan, Hesla and Joseph's single settling disc (a
 closed channel 2 cm wide, d = 0.25 cm, rho_s / rho = 1.25, nu = 0.1 cm^2/s, g = 981 cm/s^2,
@@ -21,6 +22,13 @@ of a channel 12 cm tall (y = 10 cm) and take its mean speed from 0.5 to 1 s whil
 8 d above the bottom (the speed wanders by about 1 % as cell rows open, so its largest value is
 one of those swings) and its largest speed; and the same in the benchmark's own box (6 cm tall,
 released at y = 4 cm, whose largest speed is the published "Re_max"; no window there).
+
+The driven runs (``--driven``) separate the two parts of the coupled disc's deficit: a disc ten
+thousand times denser than the water, started at a speed near the coupled disc's terminal one
+with no gravity, keeps that speed (it slows by 0.2 % in the window), and its momentum change is
+the fluid's force on a body moving across the grid, which Galilean invariance makes equal to the
+frame's drag at that speed for any body and any step. ``--reuse`` keeps the frame and coupled
+rows of the last results file and runs only these.
 
 Writes ``benchmarks/results/sedimentation_frame.{json,md}``.
 """
@@ -48,6 +56,10 @@ WIDTH = 0.02        # m, 8 d
 NU = 1.0e-5         # m^2/s
 RHO, RHO_S, G = 1000.0, 1250.0, 9.81
 WEIGHT = (RHO_S - RHO) * G * math.pi * (D / 2) ** 2   # reduced weight, N per unit depth
+# the driven disc (driven_run): about the coupled disc's terminal speed at 4 cells per diameter,
+# and a density that makes it slow by about 0.2 % over its window
+DRIVEN_SPEED = 0.0544     # m/s
+DRIVEN_DENSITY = 1.0e7    # kg/m^3
 
 
 def frame_case(speed: float, cells: int, integrator: str = "central", cfl: float = 0.5) -> str:
@@ -83,8 +95,12 @@ output = {{ forces = true }}
 
 
 def coupled_case(cells: int, step: float, height: float, start: float,
-                 integrator: str = "maccormack", duration: float = 3.0) -> str:
+                 integrator: str = "maccormack", duration: float = 3.0,
+                 density: float = RHO_S, speed: float = 0.0, gravity: bool = True) -> str:
+    """The disc released on the channel's axis (``speed``: moving down at it from the start;
+    ``gravity`` False: no gravity at all, the disc driven by its own inertia)."""
     dx = D / cells
+    effects = f"[effects]\ngravity = [0.0, -{G}]\n" if gravity else ""
     return f'''[case]
 name = "sedimentation-coupled-{cells}"
 description = "A disc released from rest on the axis of a closed channel 8 d wide."
@@ -98,14 +114,13 @@ sample_every = {step}
 engines = ["inhouse"]
 integrators = {{ inhouse = ["{integrator}"] }}
 
-[effects]
-gravity = [0.0, -{G}]
-
+{effects}
 [[bodies]]
 name = "disc"
 shape = {{ circle = {{ radius = {D / 2} }} }}
-density = {RHO_S}
+density = {density}
 position = [{WIDTH / 2}, {start}]
+velocity = [0.0, {-speed if speed else 0.0}]
 
 [fluid]
 domain = [{WIDTH}, {height}]
@@ -156,6 +171,42 @@ def coupled_run(cells: int, step: float, box: str, integrator: str = "maccormack
             "y_max": float(rec.series["body_y.disc"][i]),
             "stopped": None if rec.failure is None else rec.failure.get("time"),
             "wall_s": wall}
+
+
+def driven_run(cells: int, step: float, speed: float = DRIVEN_SPEED,
+               integrator: str = "maccormack", duration: float = 1.0) -> dict:
+    """The fluid's force on a disc driven down the tall channel's axis at ``speed``: a disc
+    DRIVEN_DENSITY / RHO times heavier than the water it displaces, started at ``speed``, no
+    gravity, so that it slows by about 0.2 % in the window (0.5-1 s) and the fluid's force is
+    its momentum change (``body_force_y``). In a steady state this is the force the fixed
+    solver's drag at that speed says (Galilean invariance), for any body mass; the settling
+    disc's speed adds the coupled step's splitting (the viscous step's wall moves at the
+    velocity predicted before the viscous exchange), this run leaves only the fluid's own
+    response to a body moving across the grid."""
+    scene = load_case_text(coupled_case(cells, step, 0.12, 0.10, integrator, duration,
+                                        density=DRIVEN_DENSITY, speed=speed, gravity=False),
+                           "driven.toml")
+    t0 = time.perf_counter()
+    rec = FluidRun(scene, integrator).record()
+    wall = time.perf_counter() - t0
+    t = np.asarray(rec.t)
+    window = (t >= 0.5) & (t <= duration)
+    u = -np.asarray(rec.series["body_vy.disc"])[window]
+    force = np.asarray(rec.series["body_force_y.disc"])[window]
+    return {"cells": cells, "step": step, "integrator": integrator, "speed_set": speed,
+            "speed": float(np.mean(u)), "speed_change": float((u[-1] - u[0]) / u[0]),
+            "force": float(np.mean(force)), "force_over_weight": float(np.mean(force) / WEIGHT),
+            "failure": rec.failure, "wall_s": wall}
+
+
+def frame_drag(frames: list[dict], speed: float) -> float | None:
+    """The frame's drag at ``speed``: D = a U^n through the two speeds that bracket it."""
+    pts = sorted((f["speed"], f["drag"]) for f in frames if f["failure"] is None)
+    for (u0, d0), (u1, d1) in itertools.pairwise(pts):
+        if u0 <= speed <= u1:
+            n = math.log(d1 / d0) / math.log(u1 / u0)
+            return d0 * (speed / u0) ** n
+    return None
 
 
 def terminal_speed(frames: list[dict]) -> float | None:
@@ -218,6 +269,33 @@ def markdown(result: dict) -> str:
         lines.append(f"| {c['box']} | {c['integrator']} | {c['cells']} | {c['step']:g} | "
                      f"{cfl:.2f} | {c['u_max']:.5f} | {c['re_max']:.2f} | {vs} | "
                      f"{c['t_max']:.2f} | {vm} | {va} | {c['wall_s']:.0f} |")
+    driven = result.get("driven") or []
+    if driven:
+        lines += ["", "## Driven at a constant speed (the fluid's force alone)", "",
+                  f"A disc {DRIVEN_DENSITY / RHO:g} times denser than water, started at "
+                  f"{DRIVEN_SPEED:g} m/s down the tall channel's axis with no gravity: the mean "
+                  "fluid force over 0.5-1 s (its momentum change) against the frame's drag at "
+                  "the same mean speed (a power law through the two frame speeds that bracket "
+                  "it, each grid against its own frame). Galilean invariance makes the two equal "
+                  "for any step; the settling disc's deficit is this excess plus the coupled "
+                  "step's splitting (docs/fluid.md).",
+                  "",
+                  "| advection | cells/d | step (s) | CFL | speed (m/s) | change in window | "
+                  "force / weight | frame `central` / weight | against it | "
+                  "frame `maccormack` / weight | against it | wall (s) |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in driven:
+            cfl = r["speed"] * r["step"] / (D / r["cells"])
+            cols = []
+            for integ in ("central", "maccormack"):
+                fd = frame_drag([f for f in result["frames"] if f["cells"] == r["cells"]
+                                 and f["integrator"] == integ], r["speed"])
+                cols += (["-", "-"] if fd is None else
+                         [f"{fd / WEIGHT:.4f}", f"{(r['force'] / fd - 1) * 100:+.1f} %"])
+            lines.append(f"| {r['integrator']} | {r['cells']} | {r['step']:g} | {cfl:.3f} | "
+                         f"{r['speed']:.5f} | {r['speed_change'] * 100:+.2f} % | "
+                         f"{r['force_over_weight']:.4f} | {' | '.join(cols)} | "
+                         f"{r['wall_s']:.0f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -235,9 +313,22 @@ def main() -> None:
         "tall:8:0.004", "tall:8:0.002", "tall:16:0.001", "glowinski:8:0.002",
         "glowinski:8:0.0005"],
         help="box:cells:step[:integrator], box 'tall' (12 cm) or 'glowinski' (6 cm)")
+    ap.add_argument("--driven", nargs="*", default=[
+        "4:0.002", "4:0.001", "4:0.0005", "8:0.002", "8:0.0005"],
+        help="cells:step[:integrator] of the disc driven at a constant speed (driven_run)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="keep the frame and coupled rows of the last results file (their "
+                         "date stays in it) and run only the driven ones")
     args = ap.parse_args()
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
+    if args.reuse:
+        last = json.loads((OUT / "sedimentation_frame.json").read_text())
+        result.update({k: last[k] for k in ("frames", "coupled", "terminal_speed",
+                                            "terminal_speed_advected")})
+        result["recorded"] = (f"{last['recorded']} (frame and coupled rows), "
+                              f"{result['recorded']} (driven rows)")
+        args.frame_cells, args.advected_cfl, args.coupled = [], 0.0, []
     # (advection, CFL, grids) of the frame runs
     schemes = [("central", 0.5, args.frame_cells)] + (
         [("maccormack", args.advected_cfl, args.advected_cells)] if args.advected_cfl > 0 else [])
@@ -253,13 +344,19 @@ def main() -> None:
                                         and f["integrator"] == integrator])
                 for c in grids}
 
-    result["terminal_speed"] = terminal("central", args.frame_cells)
-    result["terminal_speed_advected"] = (terminal("maccormack", args.advected_cells)
-                                         if args.advected_cfl > 0 else {})
+    if not args.reuse:
+        result["terminal_speed"] = terminal("central", args.frame_cells)
+        result["terminal_speed_advected"] = (terminal("maccormack", args.advected_cells)
+                                             if args.advected_cfl > 0 else {})
     for spec in args.coupled:
         box, cells, step, *rest = spec.split(":")
         result["coupled"].append(coupled_run(int(cells), float(step), box, *rest))
         print(json.dumps(result["coupled"][-1]), flush=True)
+    result["driven"] = []
+    for spec in args.driven:
+        cells, step, *rest = spec.split(":")
+        result["driven"].append(driven_run(int(cells), float(step), DRIVEN_SPEED, *rest))
+        print(json.dumps(result["driven"][-1]), flush=True)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "sedimentation_frame.json").write_text(json.dumps(result, indent=2))
     text = markdown(result)
