@@ -418,7 +418,7 @@ def test_viscous_exchange_conserves_momentum():
     (the Laplacian's links between fluid samples cancel in pairs; the box's walls are far and
     the fluid there at rest), and the moment it takes has the sign of the body's spin."""
     from crosscheck.sim.fluid.boundary import impose
-    from crosscheck.sim.fluid.viscosity import THETA_MIN, diffuse_implicit
+    from crosscheck.sim.fluid.viscosity import MOVING_THETA_MIN, diffuse_implicit
 
     nu, dt = 1e-3, 0.01
     scene = _case("""
@@ -444,13 +444,15 @@ kinematic_viscosity = {nu}
     impose(un, vn, st.ustate, st.vstate, b)
     u0, v0 = un.copy(), vn.copy()
     k = nu * dt / st.dx ** 2
-    diffuse_implicit(un, st.ustate, b.u_dist, b.u_solid, k, 0, st.gu)
-    diffuse_implicit(vn, st.vstate, b.v_dist, b.v_solid, k, 1, st.gv)
+    diffuse_implicit(un, st.ustate, b.u_dist, b.u_solid, k, 0, st.gu,
+                     theta_min=MOVING_THETA_MIN)
+    diffuse_implicit(vn, st.vstate, b.v_dist, b.v_solid, k, 1, st.gv,
+                     theta_min=MOVING_THETA_MIN)
     da = 1000.0 * st.dx ** 2
     gained = np.array([da * np.sum((un - u0)[b.u_dist >= 0]),
                        da * np.sum((vn - v0)[b.v_dist >= 0])])
     v_before, w_before = c.body.v.copy(), c.body.omega
-    c.viscous_exchange(un, vn, nu, dt, THETA_MIN)
+    c.viscous_exchange(un, vn, nu, dt, MOVING_THETA_MIN)
     lost = c.body.mass * (v_before - c.body.v)
     assert np.all(np.abs(gained) > 1e-6)
     assert lost == pytest.approx(gained, rel=1e-6)

@@ -48,8 +48,12 @@ from crosscheck.sim.fluid.pressure import (
     project_coupled,
     unknown_cells,
 )
-from crosscheck.sim.fluid.viscosity import THETA_MIN as VISCOUS_THETA_MIN
-from crosscheck.sim.fluid.viscosity import diffuse_implicit, viscous_dissipation
+from crosscheck.sim.fluid.viscosity import (
+    MOVING_THETA_MIN,
+    THETA_MIN,
+    diffuse_implicit,
+    viscous_dissipation,
+)
 
 
 @dataclass(frozen=True)
@@ -360,15 +364,17 @@ class FluidState:
                     # with a coupled body the cut faces keep the previous pressure's gradient
                     # (viscosity.diffuse_implicit)
                     keep = coupling is not None and self.incremental
+                    # a moving wall sweeps across the samples (viscosity.MOVING_THETA_MIN)
+                    theta_min = THETA_MIN if coupling is None else MOVING_THETA_MIN
                     self.last_viscous_iterations = (
                         diffuse_implicit(un, self.ustate, bnd.u_dist if walls else None,
                                          bnd.u_solid, k_total, 0, self.gu,
-                                         self.u if cn else None, keep)
+                                         self.u if cn else None, keep, theta_min)
                         + diffuse_implicit(vn, self.vstate, bnd.v_dist if walls else None,
                                            bnd.v_solid, k_total, 1, self.gv,
-                                           self.v if cn else None, keep))
+                                           self.v if cn else None, keep, theta_min))
                     if coupling is not None and walls:
-                        coupling.viscous_exchange(un, vn, nu, dt, VISCOUS_THETA_MIN)
+                        coupling.viscous_exchange(un, vn, nu, dt, theta_min)
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):

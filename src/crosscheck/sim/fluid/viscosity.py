@@ -25,18 +25,30 @@ from crosscheck.sim.fluid.pressure import SOLID, _matvec, pcg
 
 # closest a wall may be to a sample, in cells (the diagonal grows as 1/theta)
 THETA_MIN = 1e-2
+# the same with a coupled body, whose wall sweeps across the samples: each sample it approaches
+# passes through every theta, and one whose velocity still differs from the wall's by a finite
+# amount then gives a wall term (q_wall - q) / theta whose sum over the steps grows as
+# log(1 / max(theta_min, k)), k = nu dt / dx^2: the viscous force on a body driven at a constant
+# speed rose as the step shrank (+0.7 / +2.0 / +3.7 % against its frame's drag at 4 cells and
+# 2 / 1 / 0.5 ms), almost all of the rise from samples within 0.1 cell of the wall at the
+# body's front. With the walls held at least 0.1 cell from the samples it is -0.6 % at both
+# 2 and 0.5 ms, and a fixed obstacle's drag is unchanged (its samples keep their distances,
+# and those close to the wall keep the wall's velocity): docs/fluid.md, "The settling disc in
+# its own frame"
+MOVING_THETA_MIN = 0.1
 VISCOUS_TOLERANCE = 1e-10
 
 
 @njit(cache=True)
 def build_viscous(q, state, dist, use_dist, qsolid, k, normal_axis,
-                  a_lo, c_lo, a_hi, c_hi):
+                  a_lo, c_lo, a_hi, c_hi, theta_min):
     """System of one component ``q`` ((n0, n1); ``normal_axis`` 0 for u on x-faces, 1 for v on
     y-faces), scaled by ``1/k`` so that every link has the coefficient -1. Unknowns: samples that
     are not SOLID faces, not on the sides normal to the component (those keep their value: a wall,
     an inflow or an outflow face), and outside the obstacles (``dist >= 0`` when ``use_dist``).
     ``a_lo, c_lo, a_hi, c_hi``: ghost rows ``a q + c`` beyond the low and high sides along the
-    tangential axis. Returns ``(index, diag, xm, xp, ym, yp, w, b)``."""
+    tangential axis; ``theta_min`` the closest a wall is taken to be. Returns
+    ``(index, diag, xm, xp, ym, yp, w, b)``."""
     n0, n1 = q.shape
     index = -np.ones((n0, n1), np.int64)
     n = 0
@@ -93,8 +105,8 @@ def build_viscous(q, state, dist, use_dist, qsolid, k, normal_axis,
                 elif use_dist and dist[a, c] < 0.0:
                     # the wall lies between the sample and this neighbour, at theta
                     theta = dist[i, j] / (dist[i, j] - dist[a, c])
-                    if theta < THETA_MIN:
-                        theta = THETA_MIN
+                    if theta < theta_min:
+                        theta = theta_min
                     d += 1.0 / theta
                     r += qsolid[a, c] / theta
                 else:
@@ -119,12 +131,13 @@ def _scatter_solid(q, index, x, dist, use_dist, qsolid, state, write_inside):
 
 
 def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None,
-                     keep_cut_inside=False):
+                     keep_cut_inside=False, theta_min=THETA_MIN):
     """One viscous step of the component ``q`` in place: backward Euler, or with ``q_old`` (the
     component at the start of the step) Crank-Nicolson, ``(I - k/2 L) q = q + k/2 L q_old``,
     the explicit half through the same ghost-fluid stencil. ``dist`` the solid's signed
     distance at the samples (None: staircase walls), ``qsolid`` the solid's velocity component
-    there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``. Returns the CG iterations.
+    there, ``ghost = (a_lo, c_lo, a_hi, c_hi)``, ``theta_min`` the closest a wall is taken to
+    be (``MOVING_THETA_MIN`` with a coupled body). Returns the CG iterations.
 
     The cut faces whose sample lies inside the solid are not unknowns; they take the solid's
     velocity, unless ``keep_cut_inside``: then they keep their value. The coupled incremental
@@ -136,7 +149,7 @@ def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None,
     d = dist if use_dist else np.zeros((1, 1))
     kk = k if q_old is None else 0.5 * k
     index, diag, xm, xp, ym, yp, w, b = build_viscous(q, state, d, use_dist, qsolid, kk,
-                                                      normal_axis, *ghost)
+                                                      normal_axis, *ghost, theta_min)
     if diag.shape[0] == 0:
         return 0
     x = np.empty(diag.shape[0])
