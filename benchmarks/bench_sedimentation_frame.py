@@ -27,8 +27,9 @@ The driven runs (``--driven``) separate the two parts of the coupled disc's defi
 thousand times denser than the water, started at a speed near the coupled disc's terminal one
 with no gravity, keeps that speed (it slows by 0.2 % in the window), and its momentum change is
 the fluid's force on a body moving across the grid, which Galilean invariance makes equal to the
-frame's drag at that speed for any body and any step. ``--reuse`` keeps the frame and coupled
-rows of the last results file and runs only these.
+frame's drag at that speed for any body and any step. ``--reuse`` keeps the frame
+rows of the last results file (the fixed obstacle's solver is not the coupled one) and runs the
+coupled and driven ones.
 
 Writes ``benchmarks/results/sedimentation_frame.{json,md}``.
 """
@@ -317,18 +318,18 @@ def main() -> None:
         "4:0.002", "4:0.001", "4:0.0005", "8:0.002", "8:0.0005"],
         help="cells:step[:integrator] of the disc driven at a constant speed (driven_run)")
     ap.add_argument("--reuse", action="store_true",
-                    help="keep the frame and coupled rows of the last results file (their "
-                         "date stays in it) and run only the driven ones")
+                    help="keep the frame rows of the last results file (their date stays in "
+                         "it) and run only the coupled and driven ones")
     args = ap.parse_args()
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
     if args.reuse:
         last = json.loads((OUT / "sedimentation_frame.json").read_text())
-        result.update({k: last[k] for k in ("frames", "coupled", "terminal_speed",
+        result.update({k: last[k] for k in ("frames", "terminal_speed",
                                             "terminal_speed_advected")})
-        result["recorded"] = (f"{last['recorded']} (frame and coupled rows), "
-                              f"{result['recorded']} (driven rows)")
-        args.frame_cells, args.advected_cfl, args.coupled = [], 0.0, []
+        result["recorded"] = (f"{last['recorded'].split(' (')[0]} (frame rows), "
+                              f"{result['recorded']} (coupled and driven rows)")
+        args.frame_cells, args.advected_cfl = [], 0.0
     # (advection, CFL, grids) of the frame runs
     schemes = [("central", 0.5, args.frame_cells)] + (
         [("maccormack", args.advected_cfl, args.advected_cells)] if args.advected_cfl > 0 else [])

@@ -31,10 +31,10 @@ THETA_MIN = 1e-2
 # log(1 / max(theta_min, k)), k = nu dt / dx^2: the viscous force on a body driven at a constant
 # speed rose as the step shrank (+0.7 / +2.0 / +3.7 % against its frame's drag at 4 cells and
 # 2 / 1 / 0.5 ms), almost all of the rise from samples within 0.1 cell of the wall at the
-# body's front. With the walls held at least 0.1 cell from the samples it is -0.6 % at both
-# 2 and 0.5 ms, and a fixed obstacle's drag is unchanged (its samples keep their distances,
-# and those close to the wall keep the wall's velocity): docs/fluid.md, "The settling disc in
-# its own frame"
+# body's front. With the walls held at least 0.1 cell from the samples it is -0.6 / -0.5 % at
+# 2 / 0.5 ms (+1.8 / +2.1 % at 8 cells, where it was +2.2 / +3.4 %), and a fixed obstacle's
+# drag is unchanged (its samples keep their distances, and those close to the wall keep the
+# wall's velocity): docs/fluid.md, "The settling disc in its own frame"
 MOVING_THETA_MIN = 0.1
 VISCOUS_TOLERANCE = 1e-10
 
