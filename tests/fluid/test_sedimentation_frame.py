@@ -84,7 +84,7 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     about 4 % below at every step, the sum of the driven force's excess and the coupled step's
     splitting (the viscous step saw the wall at the velocity predicted before the viscous
     exchange; Coupling.predict now adds the last exchange), whose step dependences cancelled.
-    The two steps: within 1 %, bound 1 %; projecting the whole pressure each step, as the step
+    The two steps: 0.02 % apart, bound 1 %; projecting the whole pressure each step, as the step
     once did, left a slip at the wall and fell 11.6 % too fast at 0.002 (+1.1 % at 0.0005)."""
     frames = [bench.frame_run(speed, 4) for speed in (0.052, 0.058)]
     assert all(f["failure"] is None and f["unsteadiness"] < 1e-4 for f in frames)
