@@ -184,6 +184,9 @@ def driven_run(cells: int, step: float, speed: float = DRIVEN_SPEED,
     disc's speed adds the coupled step's splitting (the viscous step's wall moves at the
     velocity predicted before the viscous exchange), this run leaves only the fluid's own
     response to a body moving across the grid."""
+    if duration <= 0.5:
+        raise ValueError(f"driven_run: duration {duration:g} s leaves no window (it starts at "
+                         "0.5 s)")
     scene = load_case_text(coupled_case(cells, step, 0.12, 0.10, integrator, duration,
                                         density=DRIVEN_DENSITY, speed=speed, gravity=False),
                            "driven.toml")
@@ -200,22 +203,27 @@ def driven_run(cells: int, step: float, speed: float = DRIVEN_SPEED,
             "failure": rec.failure, "wall_s": wall}
 
 
-def frame_drag(frames: list[dict], speed: float) -> float | None:
-    """The frame's drag at ``speed``: D = a U^n through the two speeds that bracket it."""
+def _power_laws(frames: list[dict]):
+    """``(u0, d0, u1, d1, n)`` for each pair of successive frame speeds: the drag ``D = a U^n``
+    through the two."""
     pts = sorted((f["speed"], f["drag"]) for f in frames if f["failure"] is None)
     for (u0, d0), (u1, d1) in itertools.pairwise(pts):
+        yield u0, d0, u1, d1, math.log(d1 / d0) / math.log(u1 / u0)
+
+
+def frame_drag(frames: list[dict], speed: float) -> float | None:
+    """The frame's drag at ``speed``, by the power law through the two speeds that bracket it."""
+    for u0, d0, u1, _, n in _power_laws(frames):
         if u0 <= speed <= u1:
-            n = math.log(d1 / d0) / math.log(u1 / u0)
             return d0 * (speed / u0) ** n
     return None
 
 
 def terminal_speed(frames: list[dict]) -> float | None:
-    """Where the drag equals the reduced weight: D = a U^n through the two bracketing speeds."""
-    pts = sorted((f["speed"], f["drag"]) for f in frames if f["failure"] is None)
-    for (u0, d0), (u1, d1) in itertools.pairwise(pts):
+    """Where the drag equals the reduced weight, by the power law through the two bracketing
+    speeds."""
+    for u0, d0, _, d1, n in _power_laws(frames):
         if d0 <= WEIGHT <= d1:
-            n = math.log(d1 / d0) / math.log(u1 / u0)
             return u0 * (WEIGHT / d0) ** (1.0 / n)
     return None
 
@@ -324,7 +332,10 @@ def main() -> None:
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
     if args.reuse:
-        last = json.loads((OUT / "sedimentation_frame.json").read_text())
+        path = OUT / "sedimentation_frame.json"
+        last = json.loads(path.read_text()) if path.exists() else {}
+        if not last.get("frames"):
+            ap.error(f"--reuse: {path} has no frame rows to keep (run without --reuse first)")
         result.update({k: last[k] for k in ("frames", "terminal_speed",
                                             "terminal_speed_advected")})
         result["recorded"] = (f"{last['recorded'].split(' (')[0]} (frame rows), "
