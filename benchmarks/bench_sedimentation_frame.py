@@ -6,7 +6,7 @@ the DFG benchmark validates (docs/fluid.md), on the same physics.
     PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation_frame.py
         [--frame-cells 4 8 16] [--advected-cfl 0.1] [--advected-cells 4 8]
         [--speeds 0.052 0.058 0.0692] [--coupled tall:4:0.001 ...]
-        [--driven 4:0.002 ...] [--reuse]
+        [--driven 4:0.002 ...] [--reuse] [--add]
 
 The scene has the parameters of Glowinski, Pan, Hesla and Joseph's single settling disc (a
 closed channel 2 cm wide, d = 0.25 cm, rho_s / rho = 1.25, nu = 0.1 cm^2/s, g = 981 cm/s^2,
@@ -29,7 +29,9 @@ with no gravity, keeps that speed (it slows by 0.2 % in the window), and its mom
 the fluid's force on a body moving across the grid, which Galilean invariance makes equal to the
 frame's drag at that speed for any body and any step. ``--reuse`` keeps the frame
 rows of the last results file (the fixed obstacle's solver is not the coupled one) and runs the
-coupled and driven ones.
+coupled and driven ones; ``--add`` keeps every row and runs only the coupled and driven runs
+named, and the `maccormack` frame on the grids of ``--advected-cells`` (a finer grid added to
+a study without re-running it).
 
 Writes ``benchmarks/results/sedimentation_frame.{json,md}``.
 """
@@ -42,6 +44,7 @@ import json
 import math
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -308,6 +311,53 @@ def markdown(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _spec_key(row: dict) -> tuple:
+    return (row.get("box"), row["cells"], row["step"], row["integrator"])
+
+
+def add(args: argparse.Namespace) -> None:
+    """``--add``: the last results file with the named coupled and driven runs added (a run of
+    the same box, grid, step and advection replaced), and the frame with the coupled runs'
+    advection on the grids of ``--advected-cells``; its other rows kept.
+    The markdown's date line gains the date of the added rows."""
+    path = OUT / "sedimentation_frame.json"
+    if not path.exists():
+        raise SystemExit(f"--add: no results file at {path} (run without --add first)")
+    result = json.loads(path.read_text())
+    given = [a for a in sys.argv[1:] if a in ("--coupled", "--driven", "--advected-cells")]
+    coupled = args.coupled if "--coupled" in given else []
+    driven = args.driven if "--driven" in given else []
+    advected = args.advected_cells if "--advected-cells" in given else []
+    if not coupled and not driven and not advected:
+        raise SystemExit("--add: name the runs to add with --coupled, --driven and/or "
+                         "--advected-cells")
+    for cells in advected:
+        # the frame with the coupled runs' advection on another grid, at every speed
+        rows = [frame_run(speed, cells, "maccormack", args.advected_cfl)
+                for speed in args.speeds]
+        result["frames"] = [f for f in result["frames"]
+                            if (f["cells"], f["integrator"]) != (cells, "maccormack")] + rows
+        result["terminal_speed_advected"][str(cells)] = terminal_speed(rows)
+        print(json.dumps(rows), flush=True)
+    for spec in coupled:
+        box, cells, step, *rest = spec.split(":")
+        row = coupled_run(int(cells), float(step), box, *rest)
+        result["coupled"] = [r for r in result["coupled"]
+                             if _spec_key(r) != _spec_key(row)] + [row]
+        print(json.dumps(row), flush=True)
+    for spec in driven:
+        cells, step, *rest = spec.split(":")
+        row = driven_run(int(cells), float(step), DRIVEN_SPEED, *rest)
+        result["driven"] = [r for r in result.get("driven", [])
+                            if _spec_key(r) != _spec_key(row)] + [row]
+        print(json.dumps(row), flush=True)
+    result["recorded"] += f", {time.strftime('%Y-%m-%d %H:%M')} (added rows)"
+    path.write_text(json.dumps(result, indent=2))
+    text = markdown(result)
+    (OUT / "sedimentation_frame.md").write_text(text)
+    print(text)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--frame-cells", type=int, nargs="+", default=[4, 8, 16])
@@ -328,7 +378,14 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true",
                     help="keep the frame rows of the last results file (their date stays in "
                          "it) and run only the coupled and driven ones")
+    ap.add_argument("--add", action="store_true",
+                    help="keep every row of the last results file and run only the coupled "
+                         "and driven runs named (none unless given), each replacing a row "
+                         "of the same box, grid, step and advection")
     args = ap.parse_args()
+    if args.add:
+        add(args)
+        return
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
     if args.reuse:
