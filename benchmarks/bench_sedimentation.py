@@ -11,7 +11,8 @@ estimate of the grid-converged value.
     # at dt = 0.16 dx (8:dt0.02 12:dt0.01333 16:dt0.01) and the step at 8 (8:dt0.01 8:dt0.005);
     # the same at dt = 0.08 dx (8:dt0.01 12:dt0.00667 16:dt0.005) and 12:dt0.02;
     # with --tag _offaxis the releases off the axis re-measured with the incremental coupled
-    # projection (8:offset 12:offset 8:offset+dt0.01)
+    # projection (8:offset 12:offset 8:offset+dt0.01); with --tag _offaxis_remedies the
+    # release at 8 with the moving-wall remedies (8:offset; 12 not re-run)
 
 The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
 public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
