@@ -44,7 +44,6 @@ import json
 import math
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
@@ -64,6 +63,14 @@ WEIGHT = (RHO_S - RHO) * G * math.pi * (D / 2) ** 2   # reduced weight, N per un
 # and a density that makes it slow by about 0.2 % over its window
 DRIVEN_SPEED = 0.0544     # m/s
 DRIVEN_DENSITY = 1.0e7    # kg/m^3
+
+
+# the committed study (benchmarks/results/sedimentation_frame.json, before --add)
+DEFAULT_ADVECTED_CELLS = [4, 8]
+DEFAULT_COUPLED = ["tall:4:0.002", "tall:4:0.001", "tall:4:0.0005", "tall:4:0.00025",
+                   "tall:8:0.004", "tall:8:0.002", "tall:16:0.001", "glowinski:8:0.002",
+                   "glowinski:8:0.0005"]
+DEFAULT_DRIVEN = ["4:0.002", "4:0.001", "4:0.0005", "8:0.002", "8:0.0005"]
 
 
 def frame_case(speed: float, cells: int, integrator: str = "central", cfl: float = 0.5) -> str:
@@ -324,10 +331,9 @@ def add(args: argparse.Namespace) -> None:
     if not path.exists():
         raise SystemExit(f"--add: no results file at {path} (run without --add first)")
     result = json.loads(path.read_text())
-    given = [a for a in sys.argv[1:] if a in ("--coupled", "--driven", "--advected-cells")]
-    coupled = args.coupled if "--coupled" in given else []
-    driven = args.driven if "--driven" in given else []
-    advected = args.advected_cells if "--advected-cells" in given else []
+    coupled = args.coupled or []
+    driven = args.driven or []
+    advected = args.advected_cells or []
     if not coupled and not driven and not advected:
         raise SystemExit("--add: name the runs to add with --coupled, --driven and/or "
                          "--advected-cells")
@@ -365,27 +371,32 @@ def main() -> None:
     ap.add_argument("--advected-cfl", type=float, default=0.1,
                     help="the CFL number of the frame runs with the coupled runs' advection "
                          "(maccormack); 0: not run")
-    ap.add_argument("--advected-cells", type=int, nargs="+", default=[4, 8],
-                    help="the grids of those runs (a subset of --frame-cells)")
-    ap.add_argument("--coupled", nargs="*", default=[
-        "tall:4:0.002", "tall:4:0.001", "tall:4:0.0005", "tall:4:0.00025",
-        "tall:8:0.004", "tall:8:0.002", "tall:16:0.001", "glowinski:8:0.002",
-        "glowinski:8:0.0005"],
-        help="box:cells:step[:integrator], box 'tall' (12 cm) or 'glowinski' (6 cm)")
-    ap.add_argument("--driven", nargs="*", default=[
-        "4:0.002", "4:0.001", "4:0.0005", "8:0.002", "8:0.0005"],
-        help="cells:step[:integrator] of the disc driven at a constant speed (driven_run)")
+    ap.add_argument("--advected-cells", type=int, nargs="+", default=None,
+                    help="the grids of those runs (a subset of --frame-cells; default "
+                         f"{' '.join(map(str, DEFAULT_ADVECTED_CELLS))})")
+    ap.add_argument("--coupled", nargs="*", default=None,
+                    help="box:cells:step[:integrator], box 'tall' (12 cm) or 'glowinski' "
+                         "(6 cm); default the committed study's")
+    ap.add_argument("--driven", nargs="*", default=None,
+                    help="cells:step[:integrator] of the disc driven at a constant speed "
+                         "(driven_run); default the committed study's")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the frame rows of the last results file (their date stays in "
                          "it) and run only the coupled and driven ones")
     ap.add_argument("--add", action="store_true",
                     help="keep every row of the last results file and run only the coupled "
-                         "and driven runs named (none unless given), each replacing a row "
-                         "of the same box, grid, step and advection")
+                         "and driven runs named and the maccormack frames of "
+                         "--advected-cells (none unless given), each replacing a row of the "
+                         "same box, grid, step and advection")
     args = ap.parse_args()
     if args.add:
         add(args)
         return
+    # the committed study's runs, unless named
+    args.advected_cells = (DEFAULT_ADVECTED_CELLS if args.advected_cells is None
+                           else args.advected_cells)
+    args.coupled = DEFAULT_COUPLED if args.coupled is None else args.coupled
+    args.driven = DEFAULT_DRIVEN if args.driven is None else args.driven
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
     if args.reuse:
