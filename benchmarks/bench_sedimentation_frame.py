@@ -65,7 +65,9 @@ DRIVEN_SPEED = 0.0544     # m/s
 DRIVEN_DENSITY = 1.0e7    # kg/m^3
 
 
-# the committed study (benchmarks/results/sedimentation_frame.json, before --add)
+# a whole study's runs, when none are named (the results file's coupled rows lack tall:16:0.001,
+# not re-run after the moving-wall remedies; --add added driven 16:0.001 and the maccormack
+# frame at 16 cells)
 DEFAULT_ADVECTED_CELLS = [4, 8]
 DEFAULT_COUPLED = ["tall:4:0.002", "tall:4:0.001", "tall:4:0.0005", "tall:4:0.00025",
                    "tall:8:0.004", "tall:8:0.002", "tall:16:0.001", "glowinski:8:0.002",
@@ -322,46 +324,72 @@ def _spec_key(row: dict) -> tuple:
     return (row.get("box"), row["cells"], row["step"], row["integrator"])
 
 
+def _coupled_spec(spec: str) -> tuple:
+    """``box:cells:step[:integrator]`` -> the arguments of ``coupled_run``."""
+    parts = spec.split(":")
+    try:
+        if len(parts) not in (3, 4) or parts[0] not in ("tall", "glowinski"):
+            raise ValueError
+        return (int(parts[1]), float(parts[2]), parts[0], *parts[3:])
+    except ValueError:
+        raise SystemExit(f"--coupled: expected box:cells:step[:integrator] with box 'tall' or "
+                         f"'glowinski', got {spec!r}") from None
+
+
+def _driven_spec(spec: str) -> tuple:
+    """``cells:step[:integrator]`` -> the arguments of ``driven_run``."""
+    parts = spec.split(":")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        return (int(parts[0]), float(parts[1]), DRIVEN_SPEED, *parts[2:])
+    except ValueError:
+        raise SystemExit(f"--driven: expected cells:step[:integrator], got {spec!r}") from None
+
+
+def _write(result: dict) -> str:
+    """The results file and its markdown (after each run of a long study: a stop loses none)."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "sedimentation_frame.json").write_text(json.dumps(result, indent=2))
+    text = markdown(result)
+    (OUT / "sedimentation_frame.md").write_text(text)
+    return text
+
+
 def add(args: argparse.Namespace) -> None:
     """``--add``: the last results file with the named coupled and driven runs added (a run of
     the same box, grid, step and advection replaced), and the frame with the coupled runs'
-    advection on the grids of ``--advected-cells``; its other rows kept.
-    The markdown's date line gains the date of the added rows."""
+    advection on the grids of ``--advected-cells``; its other rows kept, the file rewritten
+    after each run. The markdown's date line gains the date of the added rows."""
     path = OUT / "sedimentation_frame.json"
     if not path.exists():
         raise SystemExit(f"--add: no results file at {path} (run without --add first)")
     result = json.loads(path.read_text())
-    coupled = args.coupled or []
-    driven = args.driven or []
+    # every spec read before the first run: a typo costs nothing
+    coupled = [_coupled_spec(s) for s in args.coupled or []]
+    driven = [_driven_spec(s) for s in args.driven or []]
     advected = args.advected_cells or []
     if not coupled and not driven and not advected:
         raise SystemExit("--add: name the runs to add with --coupled, --driven and/or "
                          "--advected-cells")
+    result["recorded"] += f", {time.strftime('%Y-%m-%d %H:%M')} (added rows)"
     for cells in advected:
         # the frame with the coupled runs' advection on another grid, at every speed
         rows = [frame_run(speed, cells, "maccormack", args.advected_cfl)
                 for speed in args.speeds]
         result["frames"] = [f for f in result["frames"]
                             if (f["cells"], f["integrator"]) != (cells, "maccormack")] + rows
-        result["terminal_speed_advected"][str(cells)] = terminal_speed(rows)
+        result.setdefault("terminal_speed_advected", {})[str(cells)] = terminal_speed(rows)
         print(json.dumps(rows), flush=True)
-    for spec in coupled:
-        box, cells, step, *rest = spec.split(":")
-        row = coupled_run(int(cells), float(step), box, *rest)
-        result["coupled"] = [r for r in result["coupled"]
-                             if _spec_key(r) != _spec_key(row)] + [row]
-        print(json.dumps(row), flush=True)
-    for spec in driven:
-        cells, step, *rest = spec.split(":")
-        row = driven_run(int(cells), float(step), DRIVEN_SPEED, *rest)
-        result["driven"] = [r for r in result.get("driven", [])
-                            if _spec_key(r) != _spec_key(row)] + [row]
-        print(json.dumps(row), flush=True)
-    result["recorded"] += f", {time.strftime('%Y-%m-%d %H:%M')} (added rows)"
-    path.write_text(json.dumps(result, indent=2))
-    text = markdown(result)
-    (OUT / "sedimentation_frame.md").write_text(text)
-    print(text)
+        _write(result)
+    for key, specs, run in (("coupled", coupled, coupled_run), ("driven", driven, driven_run)):
+        for spec in specs:
+            row = run(*spec)
+            result[key] = [r for r in result.get(key, [])
+                           if _spec_key(r) != _spec_key(row)] + [row]
+            print(json.dumps(row), flush=True)
+            _write(result)
+    print(markdown(result))
 
 
 def main() -> None:
@@ -397,6 +425,9 @@ def main() -> None:
                            else args.advected_cells)
     args.coupled = DEFAULT_COUPLED if args.coupled is None else args.coupled
     args.driven = DEFAULT_DRIVEN if args.driven is None else args.driven
+    # every spec read before the first run: a typo costs nothing
+    coupled = [_coupled_spec(s) for s in args.coupled]
+    driven = [_driven_spec(s) for s in args.driven]
     result = {"recorded": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
               "load": os.getloadavg()[0], "weight": WEIGHT, "frames": [], "coupled": []}
     if args.reuse:
@@ -428,20 +459,16 @@ def main() -> None:
         result["terminal_speed"] = terminal("central", args.frame_cells)
         result["terminal_speed_advected"] = (terminal("maccormack", args.advected_cells)
                                              if args.advected_cfl > 0 else {})
-    for spec in args.coupled:
-        box, cells, step, *rest = spec.split(":")
-        result["coupled"].append(coupled_run(int(cells), float(step), box, *rest))
-        print(json.dumps(result["coupled"][-1]), flush=True)
     result["driven"] = []
-    for spec in args.driven:
-        cells, step, *rest = spec.split(":")
-        result["driven"].append(driven_run(int(cells), float(step), DRIVEN_SPEED, *rest))
+    for spec in coupled:
+        result["coupled"].append(coupled_run(*spec))
+        print(json.dumps(result["coupled"][-1]), flush=True)
+        _write(result)
+    for spec in driven:
+        result["driven"].append(driven_run(*spec))
         print(json.dumps(result["driven"][-1]), flush=True)
-    OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "sedimentation_frame.json").write_text(json.dumps(result, indent=2))
-    text = markdown(result)
-    (OUT / "sedimentation_frame.md").write_text(text)
-    print(text)
+        _write(result)
+    print(_write(result))
 
 
 if __name__ == "__main__":
