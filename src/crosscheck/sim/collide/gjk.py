@@ -30,6 +30,9 @@ GJK_REL_TOL = 1e-12  # stop when the support no longer improves the distance by 
 EPA_MAX_ITER = 128
 EPA_TOL = 1e-9  # m: the nearest face is within this of the Minkowski difference's surface
 EPA_MAX_VERTS = EPA_MAX_ITER + 8
+# GJK keeps its last simplex in these rows of the scratch while it tries the next (rows 8-10 are
+# _keep's; EPA, which overwrites both, starts after GJK has returned)
+GJK_BACKUP = 12
 # a closed triangulated surface of V vertices has 2 V - 4 faces; the horizon's new faces are added
 # before the dead ones are dropped, hence the slack
 EPA_MAX_FACES = 4 * EPA_MAX_VERTS
@@ -300,6 +303,15 @@ def gjk(geom, wpos, wrot, ca, cb, s, lam):
                 duplicate = True
         if duplicate:
             return np.sqrt(vv), n
+        # the simplex before the update, restored if the update brings v no closer: the weights
+        # must stay those of the v whose distance is returned, or the witnesses (and the normal
+        # taken from them) belong to another point. Measured: a capsule's segment beside a
+        # cylinder's side, where a thin triangle's update came out 1e-6 (relative) farther; the
+        # new simplex's witnesses tilted the normal 9.6e-4 rad off the side's
+        n_prev = n
+        for k in range(n):
+            _copy_slot(s, k, GJK_BACKUP + k)
+        l0, l1, l2 = lam[0], lam[1], lam[2]
         n += 1
         if n == 2:
             n = _closest_segment(s, lam)
@@ -315,8 +327,11 @@ def gjk(geom, wpos, wrot, ca, cb, s, lam):
             vy += lam[k] * s.w[k, 1]
             vz += lam[k] * s.w[k, 2]
         if vx * vx + vy * vy + vz * vz >= vv:
-            # round-off: no strict decrease; the previous distance stands
-            return np.sqrt(vv), n
+            # no strict decrease (round-off, or a thin triangle): the previous simplex stands
+            for k in range(n_prev):
+                _copy_slot(s, GJK_BACKUP + k, k)
+            lam[0], lam[1], lam[2] = l0, l1, l2
+            return np.sqrt(vv), n_prev
     return np.sqrt(vx * vx + vy * vy + vz * vz), n
 
 
