@@ -19,7 +19,9 @@ machine or with another BLAS may round differently, and chaotic cases amplify th
 ``1e-10`` for dimensionless metrics (drifts and relative errors: a few thousand steps of
 round-off, below anything a tolerance in this project resolves) and ``1e-9`` in SI units for
 positions (m), orientations (rad) and velocities (m/s, rad/s); ``blowup_time`` gets ``abs`` one
-sample interval's worth, 0.05 s. A baseline file may override any of them in its ``"slack"``
+sample interval's worth, 0.05 s; the round-off-seeded symmetry breaking of a settling disc
+(``centreline_offset``, ``centreline_offset_mean``, ``terminal_velocity_unsteadiness``) gets
+``abs`` 1e-4 (m, or diameters) and 2e-3. A baseline file may override any of them in its ``"slack"``
 table (``{"metric": {"abs": .., "rel": ..}}``, or ``"default"``); ``baseline update`` keeps the
 table of the file it replaces.
 
@@ -53,6 +55,12 @@ DEFAULT_SLACK: dict[str, dict[str, float]] = {
     "out_of_plane_tilt": {"abs": 1e-9, "rel": 0.1},
     "out_of_plane_angular_velocity": {"abs": 1e-9, "rel": 0.1},
     "blowup_time": {"abs": 0.05, "rel": 0.0},
+    # symmetry breaking seeded by round-off (a settling disc's drift off its axis, m, or in
+    # diameters for the published benchmark; the unsteadiness of its speed): a new install
+    # with no change to the fluid code moved them by 15 % (docs/reports.md)
+    "centreline_offset": {"abs": 1e-4, "rel": 0.1},
+    "centreline_offset_mean": {"abs": 1e-4, "rel": 0.1},
+    "terminal_velocity_unsteadiness": {"abs": 2e-3, "rel": 0.1},
 }
 HIGHER_IS_BETTER = frozenset({"blowup_time"})
 
