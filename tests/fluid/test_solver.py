@@ -18,6 +18,7 @@ from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid import levelset as LS
 from crosscheck.sim.fluid import pressure as P
 from crosscheck.sim.fluid.boundary import SolidBoundary
+from crosscheck.sim.fluid.run import FluidRun
 
 BASE = """
 [case]
@@ -240,6 +241,24 @@ def test_adapter_step_is_a_cap_unless_fixed(fluid_case):
     rec = run_fluid(fixed, "semi_lagrangian", 2.5e-4)
     assert rec.failure is None and rec.meta["dt"]["min"] == pytest.approx(2.5e-4)
     assert rec.meta["dt"]["steps"] == 200
+
+
+def test_the_clock_takes_no_round_off_step_at_the_end():
+    """12000 steps of 1.25e-4 s, sampled every step, to 1.5 s: the running sum of the steps ends
+    1.5e-13 s short of the duration. The run must end there, not take a step of that length
+    (it did: its body force, a momentum change over the step, read 1e10 N). The solver's step
+    is replaced by a no-op: this is the clock alone."""
+    scene = load_case_text(BASE.replace("duration = 0.1", "duration = 1.5")
+                           .replace("dt = 0.01", "dt = 1.25e-4\nsample_every = 1.25e-4")
+                           .replace("resolution = [16, 16]", "resolution = [4, 4]"), "t.toml")
+    run = FluidRun(scene, "semi_lagrangian")
+    run.st.step = lambda dt, timers, solid=None: {"iterations": 0, "escaped": 0}
+    rec = run.record()
+    assert rec.failure is None
+    assert rec.meta["dt"]["steps"] == 12000
+    assert rec.meta["dt"]["min"] == pytest.approx(1.25e-4, rel=1e-9)
+    assert len(rec.t) == 12001 and rec.t[-1] == pytest.approx(1.5, abs=1e-9)
+    assert np.all(np.diff(rec.t) > 0.5 * 1.25e-4)
 
 
 def test_integrator_registry(fluid_case):
