@@ -7,12 +7,19 @@ invariance makes the two the same physics, and Faxen (1946) gives both:
 ``F / U = 4 pi mu / Lambda(k)``, k = a / h = 0.25 (10982 N s/m^2).
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_faxen_frame.py [--frames 4 8 16]
-        [--driven 4:2.5e-4 4:1.25e-4 4:6.25e-5 8:2.5e-4 8:1.25e-4]
+        [--driven 4:2.5e-4 4:1.25e-4 4:6.25e-5 8:2.5e-4 8:1.25e-4] [--held 4:5e-4 8:5e-4]
 
 ``--frames`` the fixed runs' cells per radius; ``--driven`` the driven runs'
-``cells_per_radius:step``. The fixed run separates the fluid solver's own convergence from the
-moving body's: where the driven disc and the fixed one disagree, the difference is what moving
-the wall across the grid costs (docs/fluid.md, "The settling disc in its own frame").
+``cells_per_radius:step``; ``--held`` the same for the third run: the fixed run's scene with
+the disc a coupled body 5 10^4 times denser than the water, at rest in the stream (it drifts to
+0.8 % of the stream's speed; the force is taken per unit relative speed), its force measured
+twice, as the body's momentum change and by the fluid's momentum balance around it
+(``forces.ForceProbe``, the fixed run's measurement): Newton's third law for the coupled step,
+which it broke by 4.1 % while the viscous step weighed every face as a whole cell.
+
+The fixed run separates the fluid solver's own convergence from the moving body's: where the
+driven disc and the fixed one disagree, the difference is what moving the wall across the grid
+costs (docs/fluid.md, "The settling disc in its own frame").
 Writes ``benchmarks/results/faxen_frame.{json,md}``.
 """
 
@@ -29,6 +36,7 @@ import numpy as np
 
 from crosscheck.reference.fluid_data import faxen_channel_lambda
 from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid.forces import ForceProbe
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,6 +50,8 @@ SPEED = 0.112            # m/s, about Faxen's settling speed of the case's disc 
 FAXEN_DRAG_PER_SPEED = 4.0 * math.pi * RHO * NU / faxen_channel_lambda(2.0 * A / WIDTH)
 DEFAULT_FRAMES = [4, 8, 16]
 DEFAULT_DRIVEN = ["4:2.5e-4", "4:1.25e-4", "4:6.25e-5", "8:2.5e-4", "8:1.25e-4"]
+DEFAULT_HELD = ["4:5e-4", "8:5e-4"]
+HELD_DENSITY = 5.0e7     # kg/m^3: drifts to 0.8 % of the stream's speed over the run
 
 
 def _fluid(cells_per_radius: int) -> str:
@@ -141,6 +151,70 @@ def driven_run(cells_per_radius: int, step: float) -> dict:
             "wall_s": wall}
 
 
+def held_case(cells_per_radius: int, step: float) -> str:
+    """``frame_case`` with the disc a coupled body at rest (``HELD_DENSITY``), the coupled
+    solver's integrator, a fixed step; 1.2 s (steady after about 1 s)."""
+    text = frame_case(cells_per_radius, step)
+    obstacle = (f'obstacles = [{{ name = "disc", circle = {{ center = [{WIDTH / 2}, 0.9], '
+                f'radius = {A} }} }}]\n')
+    assert obstacle in text
+    text = (text.replace(obstacle, "").replace("output = { forces = true }\n", "")
+            .replace('["central"]', '["semi_lagrangian"]').replace("cfl = 0.5\n", "")
+            .replace('name = "faxen-frame-', 'name = "faxen-held-'))
+    return text + f'''
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {A} }} }}
+density = {HELD_DENSITY}
+position = [{WIDTH / 2}, 0.9]
+'''
+
+
+def held_run(cells_per_radius: int, step: float) -> dict:
+    """The held disc's force per unit speed of the stream relative to it, over the last 0.2 s:
+    its momentum change (``body_force_y``) and the fluid's momentum balance around it (a
+    ``ForceProbe`` on the disc's initial place, as the fixed run measures; the disc moves by
+    1e-4 of a cell)."""
+    scene = load_case_text(held_case(cells_per_radius, step), "faxen_held.toml")
+    fixed = load_case_text(frame_case(cells_per_radius, step), "faxen_frame.toml").fluid
+    run = FluidRun(scene, "semi_lagrangian")
+    st = run.st
+    probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
+                       st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
+    balance: list[tuple[float, float]] = []
+    step_fluid = st.step
+
+    def step_and_measure(dt, timers, solid=None):
+        out = step_fluid(dt, timers, solid)
+        probe.advance(st.u, st.v, st.spec.density, dt)
+        fy = probe.forces(st.u, st.v, st.p, st.spec.density, st.spec.dynamic_viscosity,
+                          st.gravity)["disc"][1]
+        balance.append((st.time, fy))
+        return out
+
+    st.step = step_and_measure
+    t0 = time.perf_counter()
+    rec = run.record()
+    wall = time.perf_counter() - t0
+    t = np.asarray(rec.t)
+    last = t > t[-1] - 0.2
+    relative = SPEED - np.asarray(rec.series["body_vy.disc"])
+    body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[last] / relative[last]))
+    tb = np.array([b[0] for b in balance])
+    fb = np.array([b[1] for b in balance])
+    # the fluid's balance per unit relative speed at the same instants
+    rel_b = np.interp(tb, t, relative)
+    lb = tb > t[-1] - 0.2
+    fluid = float(np.mean(fb[lb] / rel_b[lb]))
+    return {"cells_per_radius": cells_per_radius, "step": step,
+            "body_drag_per_speed": body, "fluid_drag_per_speed": fluid,
+            "body_faxen_error": body / FAXEN_DRAG_PER_SPEED - 1.0,
+            "fluid_faxen_error": fluid / FAXEN_DRAG_PER_SPEED - 1.0,
+            "third_law_gap": body / fluid - 1.0,
+            "drift": float(np.max(np.abs(np.asarray(rec.series["body_vy.disc"]))) / SPEED),
+            "failure": rec.failure, "wall_s": wall}
+
+
 def markdown(result: dict) -> str:
     lines = [
         "# Faxen's channel in two frames", "",
@@ -161,7 +235,29 @@ def markdown(result: dict) -> str:
         lines.append(f"| {r['cells_per_radius']} | {r['step']:g} | {r['drag_per_speed']:.1f} | "
                      f"{100 * r['faxen_error']:+.2f} % | {100 * r['spread']:.2f} % | "
                      f"{r['wall_s']:.0f} |")
+    lines += ["", "## Disc held at rest in the stream as a coupled body (`semi_lagrangian`)", "",
+              "Its force as its momentum change (the body) and as the fluid's momentum "
+              "balance around it (the fluid): Newton's third law for the coupled step.", "",
+              "| cells per radius | step (s) | body F / U | against Faxen | fluid F / U | "
+              "against Faxen | body / fluid - 1 | wall s |",
+              "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in result.get("held", []):
+        lines.append(f"| {r['cells_per_radius']} | {r['step']:g} | "
+                     f"{r['body_drag_per_speed']:.1f} | {100 * r['body_faxen_error']:+.2f} % | "
+                     f"{r['fluid_drag_per_speed']:.1f} | {100 * r['fluid_faxen_error']:+.2f} % | "
+                     f"{100 * r['third_law_gap']:+.2f} % | {r['wall_s']:.0f} |")
     return "\n".join(lines) + "\n"
+
+
+def _grid_steps(flag: str, specs: list[str]) -> list[tuple[int, float]]:
+    out = []
+    for spec in specs:
+        try:
+            cells, step = spec.split(":")
+            out.append((int(cells), float(step)))
+        except ValueError:
+            raise SystemExit(f"{flag}: expected cells_per_radius:step, got {spec!r}") from None
+    return out
 
 
 def main() -> None:
@@ -169,16 +265,14 @@ def main() -> None:
     ap.add_argument("--frames", nargs="*", type=int, default=DEFAULT_FRAMES)
     ap.add_argument("--driven", nargs="*", default=DEFAULT_DRIVEN,
                     help="cells_per_radius:step of the driven runs")
+    ap.add_argument("--held", nargs="*", default=DEFAULT_HELD,
+                    help="cells_per_radius:step of the held runs")
     args = ap.parse_args()
-    driven = []
-    for spec in args.driven:
-        try:
-            cells, step = spec.split(":")
-            driven.append((int(cells), float(step)))
-        except ValueError:
-            raise SystemExit(f"--driven: expected cells_per_radius:step, got {spec!r}") from None
+    driven = _grid_steps("--driven", args.driven)
+    held = _grid_steps("--held", args.held)
     result = {"machine": f"{platform.machine()}, {platform.python_version()}",
-              "faxen_drag_per_speed": FAXEN_DRAG_PER_SPEED, "frames": [], "driven": []}
+              "faxen_drag_per_speed": FAXEN_DRAG_PER_SPEED, "frames": [], "driven": [],
+              "held": []}
     OUT.mkdir(parents=True, exist_ok=True)
 
     def write() -> None:
@@ -192,6 +286,10 @@ def main() -> None:
     for cells, step in driven:
         result["driven"].append(driven_run(cells, step))
         print(json.dumps(result["driven"][-1]), flush=True)
+        write()
+    for cells, step in held:
+        result["held"].append(held_run(cells, step))
+        print(json.dumps(result["held"][-1]), flush=True)
         write()
 
 

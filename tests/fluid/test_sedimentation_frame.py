@@ -69,26 +69,28 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     with the channel twice as long up- and downstream).
 
     The fluid's force alone: a disc 10^4 times denser than water driven down the channel at
-    0.0544 m/s (no gravity; its momentum change over 0.5-0.8 s) feels the frame's drag at its
-    speed, at 2 ms and 0.5 ms alike. Measured: 0.9516 and 0.9520 of the weight, 1.5 % above
-    the `central` frame's drag, which is 2.0 % below that of the frame run with the coupled
-    runs' advection (a semi-Lagrangian step's error depends on the velocity relative to the
-    grid, which differs between the frames): bound 3 %. The two steps agree to 0.04 %: bound
-    0.5 %. Before the moving wall was held 0.1 cell from the samples
-    (viscosity.MOVING_THETA_MIN) the force grew as the step shrank, 0.964 and 0.992 of the
-    weight, 2.9 % apart.
+    0.0544 m/s (no gravity; its momentum change over 0.5-0.8 s) against the `central` frame's
+    drag at its speed (0.9379 of the weight at 4 cells, 0.9524 at 8, 0.9555 at 16:
+    benchmarks/results/sedimentation_frame.md). Measured: 0.9968 and 0.9938 of the weight at 2
+    and 0.5 ms, +6.3 / +6.0 %; at 8 cells +3.9 % and at 16 cells +1.9 % (1 ms, the benchmark),
+    halving with the cell: first order, the semi-Lagrangian advection near the moving wall,
+    whose numerical diffusion at 4 cells (about V dx / 2 = 1.4e-5 m^2/s) exceeds the fluid's
+    viscosity (1e-5). The same disc held at rest in the frame's stream as a coupled body reads
+    the fixed solver's drag to 0.7 %. Bound 7 % at 4 cells; the two steps agree to 0.3 %:
+    bound 0.5 %.
+
+    Before the coupled viscous step weighed each face's momentum by its open fraction and
+    solved the slivers (viscosity.diffuse_implicit), the driven force read +1.5 % at every
+    step and +2.7 / +1.4 % at 8 / 16 cells, and this test held it to 3 %: the agreement at 4
+    cells was a cancellation, since the same code gave a disc held at rest 6 % more force than
+    the fluid's momentum balance around it (4.1 % in Stokes flow: test_faxen_frame.py) and
+    lost 0.4 % of the drag per halving of the step in Stokes flow (test_coupling.py).
 
     The coupled disc released from rest in a channel 12 cm tall, its mean speed from 0.5 to 1
-    s: measured 0.05608 / 0.05621 m/s at the steps 0.001 / 0.004, 1.0 / 0.75 % below the
-    `central` frame's speed (0.4 % above the frame with its own advection at 0.001): bound
-    2.5 % for each. Before, it was about 4 % below at every step, the sum of the driven force's
-    excess and the coupled step's splitting (the viscous step saw the wall at the velocity
-    predicted before the viscous exchange; Coupling.predict now adds the last exchange), whose
-    step dependences cancelled. The two steps: 0.23 % apart, bound 1 %. Without the predicted
-    exchange (the wall held 0.1 cell away alone) the disc falls at 0.05554 / 0.05465 m/s, 1.6 %
-    apart and -3.5 % from the frame at 0.004: both checks fail. Projecting the whole pressure
-    each step, as the step once did, left a slip at the wall and fell 11.6 % too fast at 0.002
-    (+1.1 % at 0.0005)."""
+    s: measured 0.05434 / 0.05404 m/s at the steps 0.001 / 0.004, -4.0 / -4.6 % from the
+    `central` frame's speed, as the driven force's excess (+6 %, with drag growing as U^1.3)
+    says, and 0.55 % apart: bounds 5.5 % and 1 % (before: -1.0 / -0.75 %, from the same
+    cancellation)."""
     frames = [bench.frame_run(speed, 4) for speed in (0.052, 0.058)]
     assert all(f["failure"] is None and f["unsteadiness"] < 1e-4 for f in frames)
     assert frames[0]["drag"] < bench.WEIGHT < frames[1]["drag"]
@@ -96,13 +98,14 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     driven = [bench.driven_run(4, step, duration=0.8) for step in (0.002, 0.0005)]
     assert all(d["failure"] is None and abs(d["speed_change"]) < 0.005 for d in driven)
     for d in driven:
-        assert d["force"] == pytest.approx(bench.frame_drag(frames, d["speed"]), rel=0.03)
+        frame = bench.frame_drag(frames, d["speed"])
+        assert frame < d["force"] < 1.07 * frame
     assert driven[1]["force"] == pytest.approx(driven[0]["force"], rel=0.005)
     fine = bench.coupled_run(4, 0.001, "tall", duration=1.0)
     coarse = bench.coupled_run(4, 0.004, "tall", duration=1.0)
     assert fine["stopped"] is None and coarse["stopped"] is None
-    assert fine["u_mean"] == pytest.approx(terminal, rel=0.025)
-    assert coarse["u_mean"] == pytest.approx(terminal, rel=0.025)
+    assert fine["u_mean"] == pytest.approx(terminal, rel=0.055)
+    assert coarse["u_mean"] == pytest.approx(terminal, rel=0.055)
     assert coarse["u_mean"] == pytest.approx(fine["u_mean"], rel=0.01)
 
 

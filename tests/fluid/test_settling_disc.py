@@ -29,9 +29,11 @@ def test_the_start_carries_the_added_mass_mujocos_does_not(fluid_case):
     """The first three 1 ms steps of the case: the disc starts at g (rho_s - rho_f) / (rho_s +
     C_a rho_f) with C_a the added mass of a cylinder, 1 in unbounded potential flow (Lamb sec.
     92) and 1.005 against the concentric tube of the box's half width (Kelvin's bound, (1 +
-    (R / b)^2) / (1 - (R / b)^2), b = 1 m). Measured: 3.2862 m/s^2 (C_a = 0.985) at the case's
-    R / dx = 2.4, 3.3372 (0.940) at 4, 3.3632 (0.917) at 6.4 (benchmarks/results/
-    settling_disc.md; 3.2685 / 3.2864 / 3.3084 before the incremental coupled projection). The
+    (R / b)^2) / (1 - (R / b)^2), b = 1 m). Measured: 3.2761 m/s^2 (C_a = 0.994) at the case's
+    R / dx = 2.4 (3.2862 before the coupled viscous step weighed each face's momentum by its
+    open fraction); before that, 3.3372 (0.940) at 4 and 3.3632 (0.917) at 6.4 (benchmarks/
+    results/settling_disc.md; 3.2685 / 3.2864 / 3.3084 before the incremental coupled
+    projection). The
     parabola through three steps carries the viscous force that grows over them (the first step
     alone: 3.213 / 3.214 / 3.243, C_a 1.053 / 1.052 / 1.025, docs/fluid.md), so the estimate
     depends on the step and the grid, and this holds at the case's grid.
@@ -70,8 +72,9 @@ def test_a_light_disc_starts_rising_three_times_slower_than_mujocos(fluid_case):
     """The disc at 500 kg/m^3 released near the bottom of the same box: the resolved fluid
     starts it up at g (rho_f - rho_s) / (rho_s + rho_f) = 3.27 m/s^2, MuJoCo's medium at
     g (rho_f / rho_s - 1) = 9.81 (exactly: tests/engines/test_mujoco_fluid_case.py): for a light
-    body the missing added mass triples the start. Measured -3.2854 m/s^2 (C_a 0.986) from the
-    first three 1 ms steps at the case's grid (-3.2625, C_a 1.003, before the incremental coupled
+    body the missing added mass triples the start. Measured -3.2600 m/s^2 (C_a 1.005) from the
+    first three 1 ms steps at the case's grid (-3.2854 before the coupled viscous step weighed
+    each face's momentum by its open fraction, -3.2625 before the incremental coupled
     projection); tolerance 3 % as for the heavy disc."""
     scene = fluid_case("settling_disc")
     body = scene.fluid.bodies[0]

@@ -19,10 +19,12 @@ One coupled step (``FluidState.step`` calls the pieces in this order):
    (``pressure.apply_pressure_coupled``, the incremental projection: the solve in 4 is for the
    increment).
 3. (viscous fluids) ``viscous_exchange``: the viscous step sees the body as a no-slip wall moving
-   at ``V*`` (ghost fluid, viscosity.py); the momentum it puts into the fluid through that wall is
-   taken from the body (an explicit, partitioned exchange: exact momentum balance, stable while
-   ``rho nu dt sum(1/theta) / M`` is well below 1; the largest value met is in the run's meta).
-   The wall is held at least ``viscosity.MOVING_THETA_MIN`` of a cell from the samples.
+   at ``V*`` (ghost fluid, viscosity.py, with each face's momentum weighed by its open fraction
+   and the slivers, cut faces whose sample is inside the body, as unknowns); the momentum it
+   puts into the fluid through that wall is taken from the body (an explicit, partitioned
+   exchange: exact momentum balance, stable while ``rho nu dt sum(1/theta) / M`` is well below
+   1; the largest value met is in the run's meta). The wall is held at least
+   ``viscosity.MOVING_THETA_MIN`` of a cell from the samples.
 4. the coupled projection (``pressure.project_coupled``): with ``J`` the body's flux through the
    cells' faces (``J_c = sum_f s_f beta_f (e_f, (r_f x e_f)_z)``, ``beta_f`` the face's solid
    fraction belonging to the body, ``s_f`` +-1 outward, ``r_f`` from the centre of mass to the
@@ -61,6 +63,7 @@ from crosscheck.scene.shapes import Placed
 from crosscheck.sim.fluid import bodygeom
 from crosscheck.sim.fluid.boundary import SolidBoundary
 from crosscheck.sim.fluid.boundary import SolidStop as CouplingStop
+from crosscheck.sim.fluid.viscosity import sliver_links, sliver_weights
 
 # The body's geometry is computed in a window of its bounding box grown by this many cells
 # (distances beyond it are only ever compared with zero: path clipping, ghost-fluid walls).
@@ -356,41 +359,50 @@ class Coupling:
             *(b.mass * ((b.v - self.v_start) / dt - self.gravity)),
             b.inertia * (b.omega - self.omega_start) / dt])
 
-    def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray, nu: float,
-                         dt: float, theta_min: float) -> None:
+    def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray, ustate: np.ndarray,
+                         vstate: np.ndarray, nu: float, dt: float, theta_min: float) -> None:
         """Take from the body the momentum the viscous step put into the fluid through the
-        body's no-slip wall: at a fluid sample whose neighbour lies inside the body at the
-        fraction theta of the way, the wall's term of the backward-Euler step is
-        ``nu dt (q_wall - q) / (theta dx^2)`` per unit area (viscosity.py), i.e. a momentum
-        ``rho nu dt (q_wall - q) / theta`` per sample, applied at the wall point."""
+        body's no-slip wall (viscosity.diffuse_implicit, whose rows weigh each face's momentum
+        by its open fraction, so that this is the fluid's momentum change):
+
+        * at a fluid sample whose neighbour lies inside the body at the fraction theta of the
+          way, the wall's term ``nu dt (q_wall - q) / (theta dx^2)`` per unit area, a momentum
+          ``rho nu dt (q_wall - q) / theta`` per sample, applied at the wall point; unless that
+          neighbour is a sliver linked to the sample (the link replaces the wall);
+        * at a sliver, its wall's term ``rho nu dt w (q_wall - q)`` (``w = 2 / f``,
+          viscosity.sliver_weights), at the point where the wall crosses its face."""
         g, b, bnd = self.geometry, self.body, self.boundary
         px = np.zeros(3)
-        inv_theta_sum = 0.0
+        coupling_sum = 0.0
+        k = nu * dt / (self.dx * self.dx)
         for comp in (0, 1):
             if comp == 0:
                 sl = g.ufaces
+                state, frac, dist_all = ustate, bnd.u_frac, bnd.u_dist
                 q = u_new[sl]
                 qs = bnd.u_solid[sl]
-                dist = bnd.u_dist[sl]
                 body_in = g.u_dist < 0.0
                 xs = (np.arange(g.i0, g.i1 + 1) * self.dx)[:, None] + 0.0 * q
                 ys = ((np.arange(g.j0, g.j1) + 0.5) * self.dx)[None, :] + 0.0 * q
             else:
                 sl = g.vfaces
+                state, frac, dist_all = vstate, bnd.v_frac, bnd.v_dist
                 q = v_new[sl]
                 qs = bnd.v_solid[sl]
-                dist = bnd.v_dist[sl]
                 body_in = g.v_dist < 0.0
                 xs = ((np.arange(g.i0, g.i1) + 0.5) * self.dx)[:, None] + 0.0 * q
                 ys = (np.arange(g.j0, g.j1 + 1) * self.dx)[None, :] + 0.0 * q
+            link = sliver_links(state, dist_all, frac, comp)[sl]
+            dist = dist_all[sl]
             fluid = dist >= 0.0
             n0, n1 = q.shape
-            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            for s, (di, dj) in enumerate(((1, 0), (-1, 0), (0, 1), (0, -1))):
                 a = slice(max(-di, 0), n0 - max(di, 0))
                 c = slice(max(-dj, 0), n1 - max(dj, 0))
                 an = slice(max(di, 0), n0 - max(-di, 0))
                 cn = slice(max(dj, 0), n1 - max(-dj, 0))
-                pair = fluid[a, c] & body_in[an, cn]
+                # a linked sliver's link points back along s ^ 1
+                pair = fluid[a, c] & body_in[an, cn] & (link[an, cn] != (s ^ 1))
                 if not pair.any():
                     continue
                 d_here = dist[a, c][pair]
@@ -406,10 +418,28 @@ class Coupling:
                 else:
                     px[1] += mom.sum()
                     px[2] += float(np.sum(wx * mom))
-                inv_theta_sum += float(np.sum(1.0 / theta))
+                coupling_sum += float(np.sum(1.0 / theta))
+            # the slivers' walls
+            open_w = 1.0 - frac[sl]
+            ii, jj = np.nonzero((link >= 0) & body_in)
+            for i, j in zip(ii, jj, strict=True):
+                f = min(max(float(open_w[i, j]), 1e-6), 0.5)
+                t, tw = sliver_weights(f)
+                mom = self.rho * nu * dt * tw * (qs[i, j] - q[i, j])
+                di, dj = ((1, 0), (-1, 0), (0, 1), (0, -1))[link[i, j]]
+                wx = xs[i, j] + (0.5 - f) * di * self.dx - b.x[0]
+                wy = ys[i, j] + (0.5 - f) * dj * self.dx - b.x[1]
+                if comp == 0:
+                    px[0] += mom
+                    px[2] += -wy * mom
+                else:
+                    px[1] += mom
+                    px[2] += wx * mom
+                # what the wall's velocity moves through the sliver's solved value
+                coupling_sum += tw * (f / k + t) / (f / k + t + tw)
         if nu > 0.0:
             self.viscous_number = max(self.viscous_number,
-                                      self.rho * nu * dt * inv_theta_sum / b.mass)
+                                      self.rho * nu * dt * coupling_sum / b.mass)
         exchange = -px / np.array([b.mass, b.mass, b.inertia])
         self.apply_impulse(exchange - self.predicted_exchange)
         self.predicted_exchange = np.zeros(3)
