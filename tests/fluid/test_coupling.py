@@ -580,9 +580,10 @@ def test_energy_lost_against_the_viscous_dissipation(runs):
     over a window against the integral of 2 mu integral of D:D dA measured from the fields.
 
     * Stokes flow, the sedimentation case (Re 0.047, t >= 0.2 s): the loss is viscous; ratio
-      lost / viscous 1.081 at dx = a / 4 (1.076 with the step doubled), 1.043 at dx = a / 8: the
-      excess halves with dx (the D:D quadrature is first order at the moving wall, where the
-      rigid velocity inside the body is taken a fraction of a cell away).
+      lost / viscous 1.117 at dx = a / 4, 1.059 at dx = a / 8: the excess halves with dx (the
+      D:D quadrature is first order at the moving wall, where the rigid velocity inside the
+      body is taken a fraction of a cell away). Before the coupled viscous step weighed each
+      face's momentum by its open fraction: 1.081 and 1.043; bound 1.15.
     * A disc (density 2000, radius 0.05 m) sinking 0.3 s in a closed 1 m box: at nu = 1e-3 (Re
       about 61) the ratio is 3.38 at 48^2 and 1.83 at 96^2 (dt 2.5e-3): the semi-Lagrangian
       advection's own dissipation dominates, 70 % and 45 % of the loss; at nu = 0.01 (Re 3.5)
@@ -596,7 +597,7 @@ def test_energy_lost_against_the_viscous_dissipation(runs):
     quadrature); the numerical share falls with the grid."""
     scene, rec = runs("sedimentation_channel", "semi_lagrangian")
     m = fluid_metrics(scene, rec)
-    assert 1.0 <= m["viscous_dissipation_ratio"] < 1.12
+    assert 1.0 <= m["viscous_dissipation_ratio"] < 1.15
     assert m["energy_rise_max"] < 1e-3
     ratios = []
     for n in (48, 96):
