@@ -63,7 +63,11 @@ from crosscheck.scene.shapes import Placed
 from crosscheck.sim.fluid import bodygeom
 from crosscheck.sim.fluid.boundary import SolidBoundary
 from crosscheck.sim.fluid.boundary import SolidStop as CouplingStop
-from crosscheck.sim.fluid.viscosity import sliver_links, sliver_weights
+from crosscheck.sim.fluid.viscosity import sliver_links
+
+# the offsets of viscosity.sliver_links's directions (0: +i, 1: -i, 2: +j, 3: -j)
+_DI = np.array([1, -1, 0, 0])
+_DJ = np.array([0, 0, 1, -1])
 
 # The body's geometry is computed in a window of its bounding box grown by this many cells
 # (distances beyond it are only ever compared with zero: path clipping, ghost-fluid walls).
@@ -420,23 +424,23 @@ class Coupling:
                     px[2] += float(np.sum(wx * mom))
                 coupling_sum += float(np.sum(1.0 / theta))
             # the slivers' walls
-            open_w = 1.0 - frac[sl]
             ii, jj = np.nonzero((link >= 0) & body_in)
-            for i, j in zip(ii, jj, strict=True):
-                f = min(max(float(open_w[i, j]), 1e-6), 0.5)
-                t, tw = sliver_weights(f)
-                mom = self.rho * nu * dt * tw * (qs[i, j] - q[i, j])
-                di, dj = ((1, 0), (-1, 0), (0, 1), (0, -1))[link[i, j]]
-                wx = xs[i, j] + (0.5 - f) * di * self.dx - b.x[0]
-                wy = ys[i, j] + (0.5 - f) * dj * self.dx - b.x[1]
+            if ii.size:
+                f = np.clip(1.0 - frac[sl][ii, jj], 1e-6, 0.5)     # viscosity.sliver_weights
+                t, tw = 1.0 / (0.5 + 0.5 * f), 2.0 / f
+                mom = self.rho * nu * dt * tw * (qs[ii, jj] - q[ii, jj])
+                s_dir = link[ii, jj]
+                off = 0.5 - f                  # the wall's crossing, from the sample, in cells
+                wx = xs[ii, jj] + off * _DI[s_dir] * self.dx - b.x[0]
+                wy = ys[ii, jj] + off * _DJ[s_dir] * self.dx - b.x[1]
                 if comp == 0:
-                    px[0] += mom
-                    px[2] += -wy * mom
+                    px[0] += float(mom.sum())
+                    px[2] += float(np.sum(-wy * mom))
                 else:
-                    px[1] += mom
-                    px[2] += wx * mom
+                    px[1] += float(mom.sum())
+                    px[2] += float(np.sum(wx * mom))
                 # what the wall's velocity moves through the sliver's solved value
-                coupling_sum += tw * (f / k + t) / (f / k + t + tw)
+                coupling_sum += float(np.sum(tw * (f / k + t) / (f / k + t + tw)))
         if nu > 0.0:
             self.viscous_number = max(self.viscous_number,
                                       self.rho * nu * dt * coupling_sum / b.mass)
