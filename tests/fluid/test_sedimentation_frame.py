@@ -72,8 +72,9 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     0.0544 m/s (no gravity; its momentum change over 0.5-0.8 s) against the `central` frame's
     drag at its speed (0.9379 of the weight at 4 cells, 0.9524 at 8, 0.9555 at 16:
     benchmarks/results/sedimentation_frame.md). Measured: 0.9968 and 0.9938 of the weight at 2
-    and 0.5 ms, +6.3 / +6.0 %; at 8 cells +3.9 % and at 16 cells +1.9 % (1 ms, the benchmark),
-    halving with the cell: first order, the semi-Lagrangian advection near the moving wall,
+    and 0.5 ms, +6.3 / +6.0 %; at 8 cells +4.1 / +3.6 % (2 / 0.5 ms) and at 16 cells +1.8 %
+    (1 ms: the benchmark), about halving with the cell: first order, the semi-Lagrangian
+    advection near the moving wall,
     whose numerical diffusion at 4 cells (about V dx / 2 = 1.4e-5 m^2/s) exceeds the fluid's
     viscosity (1e-5). The same disc held at rest in the frame's stream as a coupled body reads
     the fixed solver's drag to 0.7 %. Bound 7 % at 4 cells; the two steps agree to 0.3 %:

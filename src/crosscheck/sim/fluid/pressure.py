@@ -69,24 +69,6 @@ def _theta(pf, pa):
 
 
 @njit(cache=True)
-def set_link(k, s, m, w, xm, xp, ym, yp, wxm, wxp, wym, wyp):
-    """Row ``k``'s neighbour ``m`` in direction ``s`` (0: +x, 1: -x, 2: +y, 3: -y), with the
-    off-diagonal entry ``-w``."""
-    if s == 0:
-        xp[k] = m
-        wxp[k] = w
-    elif s == 1:
-        xm[k] = m
-        wxm[k] = w
-    elif s == 2:
-        yp[k] = m
-        wyp[k] = w
-    else:
-        ym[k] = m
-        wym[k] = w
-
-
-@njit(cache=True)
 def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
     """Assemble the compressed matrix and right-hand side. Returns
     ``(index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, n_dirichlet)``.
@@ -148,7 +130,18 @@ def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
                 m = index[a, c]
                 if m >= 0:
                     d += w
-                    set_link(k, s, m, w, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+                    if s == 0:
+                        xp[k] = m
+                        wxp[k] = w
+                    elif s == 1:
+                        xm[k] = m
+                        wxm[k] = w
+                    elif s == 2:
+                        yp[k] = m
+                        wyp[k] = w
+                    else:
+                        ym[k] = m
+                        wym[k] = w
                 elif phi[a, c] >= 0.0:
                     d += w / _theta(pf, phi[a, c])
                     n_dir += 1

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crosscheck.sim.fluid.pressure import SOLID, _matvec, pcg, set_link
+from crosscheck.sim.fluid.pressure import SOLID, _matvec, pcg
 
 # closest a wall may be to a sample, in cells (the diagonal grows as 1/theta)
 THETA_MIN = 1e-2
@@ -148,7 +148,19 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                 b[kk] = v * q[i, j] * inv_k + tw * qsolid[i, j]
                 s = link[i, j]
                 di, dj = _step(s)
-                set_link(kk, s, index[i + di, j + dj], t, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+                m = index[i + di, j + dj]
+                if s == 0:
+                    xp[kk] = m
+                    wxp[kk] = t
+                elif s == 1:
+                    xm[kk] = m
+                    wxm[kk] = t
+                elif s == 2:
+                    yp[kk] = m
+                    wyp[kk] = t
+                else:
+                    ym[kk] = m
+                    wym[kk] = t
                 continue
             v = 1.0
             if volume_weighted:
@@ -179,7 +191,18 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                         m = -1          # a sliver linked elsewhere: a wall for this sample
                 if m >= 0:
                     d += wgt
-                    set_link(kk, s, m, wgt, xm, xp, ym, yp, wxm, wxp, wym, wyp)
+                    if s == 0:
+                        xp[kk] = m
+                        wxp[kk] = wgt
+                    elif s == 1:
+                        xm[kk] = m
+                        wxm[kk] = wgt
+                    elif s == 2:
+                        yp[kk] = m
+                        wyp[kk] = wgt
+                    else:
+                        ym[kk] = m
+                        wym[kk] = wgt
                 elif use_dist and dist[a, c] < 0.0:
                     # the wall lies between the sample and this neighbour, at theta
                     theta = dist[i, j] / (dist[i, j] - dist[a, c])
