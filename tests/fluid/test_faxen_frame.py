@@ -3,7 +3,9 @@ Stokes drag on a disc held midway between two walls, the stream and both walls m
 against Faxen's (1946) ``4 pi mu / Lambda(k)``. The scene is the benchmark's
 (benchmarks/bench_faxen_frame.py, which also runs the same disc driven down the channel by the
 coupled solver); it is the reference the coupled Faxen case (cases/fluid/sedimentation_channel)
-is read against: where the moving disc and this one disagree, the moving wall is at fault."""
+is read against: where the moving disc and this one disagree, the moving wall is at fault. Also
+the same disc held at rest in the stream as a coupled body: Newton's third law between the body
+and the fluid."""
 
 from __future__ import annotations
 
