@@ -466,7 +466,7 @@ kinematic_viscosity = {nu}
     whole = np.array([da * np.sum((un - u0)[b.u_dist >= 0]),
                       da * np.sum((vn - v0)[b.v_dist >= 0])])
     v_before, w_before = c.body.v.copy(), c.body.omega
-    c.viscous_exchange(un, vn, st.ustate, st.vstate, nu, dt, MOVING_THETA_MIN)
+    c.viscous_exchange(un, vn, (lu, lv), nu, dt, MOVING_THETA_MIN)
     lost = c.body.mass * (v_before - c.body.v)
     assert np.all(np.abs(gained) > 1e-6)
     assert lost == pytest.approx(gained, rel=1e-6)

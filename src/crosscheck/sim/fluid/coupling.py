@@ -63,11 +63,7 @@ from crosscheck.scene.shapes import Placed
 from crosscheck.sim.fluid import bodygeom
 from crosscheck.sim.fluid.boundary import SolidBoundary
 from crosscheck.sim.fluid.boundary import SolidStop as CouplingStop
-from crosscheck.sim.fluid.viscosity import sliver_links
-
-# the offsets of viscosity.sliver_links's directions (0: +i, 1: -i, 2: +j, 3: -j)
-_DI = np.array([1, -1, 0, 0])
-_DJ = np.array([0, 0, 1, -1])
+from crosscheck.sim.fluid.viscosity import DIRECTIONS, sliver_weights
 
 # The body's geometry is computed in a window of its bounding box grown by this many cells
 # (distances beyond it are only ever compared with zero: path clipping, ghost-fluid walls).
@@ -363,8 +359,9 @@ class Coupling:
             *(b.mass * ((b.v - self.v_start) / dt - self.gravity)),
             b.inertia * (b.omega - self.omega_start) / dt])
 
-    def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray, ustate: np.ndarray,
-                         vstate: np.ndarray, nu: float, dt: float, theta_min: float) -> None:
+    def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray,
+                         links: tuple[np.ndarray, np.ndarray], nu: float, dt: float,
+                         theta_min: float) -> None:
         """Take from the body the momentum the viscous step put into the fluid through the
         body's no-slip wall (viscosity.diffuse_implicit, whose rows weigh each face's momentum
         by its open fraction, so that this is the fluid's momentum change):
@@ -374,7 +371,9 @@ class Coupling:
           ``rho nu dt (q_wall - q) / theta`` per sample, applied at the wall point; unless that
           neighbour is a sliver linked to the sample (the link replaces the wall);
         * at a sliver, its wall's term ``rho nu dt w (q_wall - q)`` (``w = 2 / f``,
-          viscosity.sliver_weights), at the point where the wall crosses its face."""
+          viscosity.sliver_weights), at the point where the wall crosses its face.
+
+        ``links``: the u and v slivers' ``viscosity.sliver_links`` the viscous step used."""
         g, b, bnd = self.geometry, self.body, self.boundary
         px = np.zeros(3)
         coupling_sum = 0.0
@@ -382,7 +381,7 @@ class Coupling:
         for comp in (0, 1):
             if comp == 0:
                 sl = g.ufaces
-                state, frac, dist_all = ustate, bnd.u_frac, bnd.u_dist
+                frac, dist = bnd.u_frac[sl], bnd.u_dist[sl]
                 q = u_new[sl]
                 qs = bnd.u_solid[sl]
                 body_in = g.u_dist < 0.0
@@ -390,17 +389,16 @@ class Coupling:
                 ys = ((np.arange(g.j0, g.j1) + 0.5) * self.dx)[None, :] + 0.0 * q
             else:
                 sl = g.vfaces
-                state, frac, dist_all = vstate, bnd.v_frac, bnd.v_dist
+                frac, dist = bnd.v_frac[sl], bnd.v_dist[sl]
                 q = v_new[sl]
                 qs = bnd.v_solid[sl]
                 body_in = g.v_dist < 0.0
                 xs = ((np.arange(g.i0, g.i1) + 0.5) * self.dx)[:, None] + 0.0 * q
                 ys = (np.arange(g.j0, g.j1 + 1) * self.dx)[None, :] + 0.0 * q
-            link = sliver_links(state, dist_all, frac, comp)[sl]
-            dist = dist_all[sl]
+            link = links[comp][sl]
             fluid = dist >= 0.0
             n0, n1 = q.shape
-            for s, (di, dj) in enumerate(((1, 0), (-1, 0), (0, 1), (0, -1))):
+            for s, (di, dj) in enumerate(DIRECTIONS):
                 a = slice(max(-di, 0), n0 - max(di, 0))
                 c = slice(max(-dj, 0), n1 - max(dj, 0))
                 an = slice(max(di, 0), n0 - max(-di, 0))
@@ -426,13 +424,12 @@ class Coupling:
             # the slivers' walls
             ii, jj = np.nonzero((link >= 0) & body_in)
             if ii.size:
-                f = np.clip(1.0 - frac[sl][ii, jj], 1e-6, 0.5)     # viscosity.sliver_weights
-                t, tw = 1.0 / (0.5 + 0.5 * f), 2.0 / f
+                f, t, tw = sliver_weights(1.0 - frac[ii, jj])
                 mom = self.rho * nu * dt * tw * (qs[ii, jj] - q[ii, jj])
-                s_dir = link[ii, jj]
+                offset = DIRECTIONS[link[ii, jj]]
                 off = 0.5 - f                  # the wall's crossing, from the sample, in cells
-                wx = xs[ii, jj] + off * _DI[s_dir] * self.dx - b.x[0]
-                wy = ys[ii, jj] + off * _DJ[s_dir] * self.dx - b.x[1]
+                wx = xs[ii, jj] + off * offset[:, 0] * self.dx - b.x[0]
+                wy = ys[ii, jj] + off * offset[:, 1] * self.dx - b.x[1]
                 if comp == 0:
                     px[0] += float(mom.sum())
                     px[2] += float(np.sum(-wy * mom))

@@ -52,6 +52,7 @@ from crosscheck.sim.fluid.viscosity import (
     MOVING_THETA_MIN,
     THETA_MIN,
     diffuse_implicit,
+    sliver_links,
     viscous_dissipation,
 )
 
@@ -376,18 +377,22 @@ class FluidState:
                     coupled = coupling is not None and self.incremental
                     # a moving wall sweeps across the samples (viscosity.MOVING_THETA_MIN)
                     theta_min = THETA_MIN if coupling is None else MOVING_THETA_MIN
+                    # the slivers, found once for the viscous step and the exchange
+                    links = ((sliver_links(self.ustate, bnd.u_dist, bnd.u_frac, 0),
+                              sliver_links(self.vstate, bnd.v_dist, bnd.v_frac, 1))
+                             if coupled and walls else (None, None))
                     self.last_viscous_iterations = (
                         diffuse_implicit(un, self.ustate, bnd.u_dist if walls else None,
                                          bnd.u_solid, k_total, 0, self.gu,
                                          self.u if cn else None,
-                                         bnd.u_frac if coupled else None, theta_min)
+                                         bnd.u_frac if coupled else None, theta_min, links[0])
                         + diffuse_implicit(vn, self.vstate, bnd.v_dist if walls else None,
                                            bnd.v_solid, k_total, 1, self.gv,
                                            self.v if cn else None,
-                                           bnd.v_frac if coupled else None, theta_min))
+                                           bnd.v_frac if coupled else None, theta_min,
+                                           links[1]))
                     if coupling is not None and walls:
-                        coupling.viscous_exchange(un, vn, self.ustate, self.vstate, nu, dt,
-                                                  theta_min)
+                        coupling.viscous_exchange(un, vn, links, nu, dt, theta_min)
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):

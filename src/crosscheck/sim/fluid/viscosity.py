@@ -39,10 +39,13 @@ MOVING_THETA_MIN = 0.1
 VISCOUS_TOLERANCE = 1e-10
 
 
+# the neighbour's offset (di, dj) in each direction of a link (0: +i, 1: -i, 2: +j, 3: -j)
+DIRECTIONS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]])
+
+
 @njit(cache=True)
 def _step(s):
-    """The neighbour's offset ``(di, dj)`` in direction ``s`` (0: +i, 1: -i, 2: +j, 3: -j)."""
-    return (1 if s == 0 else (-1 if s == 1 else 0)), (1 if s == 2 else (-1 if s == 3 else 0))
+    return DIRECTIONS[s, 0], DIRECTIONS[s, 1]
 
 
 @njit(cache=True)
@@ -84,13 +87,13 @@ def sliver_links(state, dist, frac, normal_axis):
 
 @njit(cache=True)
 def sliver_weights(open_fraction):
-    """``(link, wall)``: the weights of a sliver's link to its fluid neighbour and to the wall,
-    in units of the 5-point stencil's unit link. Its value is the mean over its open part, of
-    length ``f dx`` (``f`` the open fraction, at most 1/2 when the sample is inside): the
-    centroid is ``f / 2`` cells from the wall and ``1/2 + f / 2`` from the neighbour's
-    sample."""
-    f = min(max(open_fraction, 1e-6), 0.5)
-    return 1.0 / (0.5 + 0.5 * f), 2.0 / f
+    """``(f, link, wall)`` of a sliver (or an array of them): its momentum weight ``f``, the open
+    fraction taken into [1e-6, 1/2] (at most 1/2 when the sample is inside), and the weights of
+    its link to its fluid neighbour and to the wall, in units of the 5-point stencil's unit
+    link. Its value is the mean over its open part, of length ``f dx``: the centroid is
+    ``f / 2`` cells from the wall and ``1/2 + f / 2`` from the neighbour's sample."""
+    f = np.minimum(np.maximum(open_fraction, 1e-6), 0.5)
+    return f, 1.0 / (0.5 + 0.5 * f), 2.0 / f
 
 
 @njit(cache=True)
@@ -140,9 +143,7 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                 continue
             if use_dist and dist[i, j] < 0.0:
                 # a sliver: its fluid neighbour and the wall (sliver_weights)
-                f = 1.0 - frac[i, j]
-                t, tw = sliver_weights(f)
-                v = min(max(f, 1e-6), 0.5)
+                v, t, tw = sliver_weights(1.0 - frac[i, j])
                 vol[kk] = v
                 diag[kk] = v * inv_k + t + tw
                 b[kk] = v * q[i, j] * inv_k + tw * qsolid[i, j]
@@ -186,7 +187,7 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                 if m >= 0 and use_dist and dist[a, c] < 0.0:
                     if link[a, c] == (s ^ 1):
                         # the sliver linked to this sample: its link replaces the wall
-                        wgt = sliver_weights(1.0 - frac[a, c])[0]
+                        wgt = sliver_weights(1.0 - frac[a, c])[1]
                     else:
                         m = -1          # a sliver linked elsewhere: a wall for this sample
                 if m >= 0:
@@ -232,7 +233,7 @@ def _scatter_solid(q, index, x, dist, use_dist, qsolid, state, write_inside):
 
 
 def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None, frac=None,
-                     theta_min=THETA_MIN):
+                     theta_min=THETA_MIN, link=None):
     """One viscous step of the component ``q`` in place: backward Euler, or with ``q_old`` (the
     component at the start of the step) Crank-Nicolson, ``(I - k/2 L) q = q + k/2 L q_old``,
     the explicit half through the same ghost-fluid stencil. ``dist`` the solid's signed
@@ -257,12 +258,15 @@ def diffuse_implicit(q, state, dist, qsolid, k, normal_axis, ghost, q_old=None, 
       (:func:`sliver_weights`). Taking the body's velocity there and then the pressure's
       gradient (``u_body - dt grad p / rho``) gave them a slip proportional to the step: the
       drag on a driven disc changed by 0.4 % with each halving of the step. A sliver with no
-      fluid neighbour along its face keeps its value."""
+      fluid neighbour along its face keeps its value. ``link``: the slivers'
+      :func:`sliver_links` of this component, if the caller has them (the coupling's exchange
+      needs the same ones)."""
     use_dist = dist is not None
     coupled = frac is not None
     d = dist if use_dist else np.zeros((1, 1))
     if coupled and use_dist:
-        link = sliver_links(state, d, frac, normal_axis)
+        if link is None:
+            link = sliver_links(state, d, frac, normal_axis)
     elif use_dist:
         link = -np.ones(q.shape, np.int64)
     else:
