@@ -40,6 +40,7 @@ from crosscheck.sim.fluid.boundary import (
 from crosscheck.sim.fluid.forces import ForceProbe
 from crosscheck.sim.fluid.particles import Particles
 from crosscheck.sim.fluid.pressure import (
+    FLUID,
     apply_pressure,
     apply_pressure_coupled,
     classify_faces,
@@ -197,16 +198,12 @@ class FluidState:
         self.p_increment = np.zeros((self.nx, self.ny))
         self.no_dist = np.zeros((1, 1))
         # the central scheme: Eulerian convection, Adams-Bashforth 2 with the previous step's term
-        self.conv_prev: tuple[np.ndarray, np.ndarray] | None = None
+        self.conv_prev: tuple | None = None   # (N_u, N_v, faces it was computed on)
         self.dt_prev = 0.0
         self.unsupported = None
         if scheme.advection == "central" and self.has_surface:
             self.unsupported = ("the central scheme has no free surface (it convects the "
                                 "velocity only); use semi_lagrangian or maccormack")
-        elif self.coupling is not None and scheme.advection == "central":
-            self.unsupported = ("the central scheme with a moving body is not implemented (its "
-                                "Adams-Bashforth history lives on faces the body moves "
-                                "across); use semi_lagrangian or maccormack")
         self.forces = None
         if spec.output.forces.enabled:
             b = self.static_boundary
@@ -392,7 +389,11 @@ class FluidState:
                                            bnd.v_frac if coupled else None, theta_min,
                                            links[1]))
                     if coupling is not None and walls:
-                        coupling.viscous_exchange(un, vn, links, nu, dt, theta_min)
+                        # Crank-Nicolson's wall terms are the mean of the old and the new
+                        # field's (both against the body's present velocity; linear in q)
+                        coupling.viscous_exchange(0.5 * (un + self.u) if cn else un,
+                                                  0.5 * (vn + self.v) if cn else vn,
+                                                  links, nu, dt, theta_min)
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):
@@ -452,13 +453,19 @@ class FluidState:
         nu_ = np.empty(self.u.shape)
         nv_ = np.empty(self.v.shape)
         K.convection(up, vp, self.ustate, self.vstate, self.dx, nu_, nv_)
+        # the faces the term was computed on (FLUID in the last classification); a moving
+        # body uncovers faces that have no previous term: forward Euler there
+        fluid = ((self.ustate == FLUID), (self.vstate == FLUID)) if self.coupling else None
         if self.conv_prev is None:
             cu, cv = nu_, nv_
         else:
             r = dt / self.dt_prev
             cu = (1.0 + 0.5 * r) * nu_ - 0.5 * r * self.conv_prev[0]
             cv = (1.0 + 0.5 * r) * nv_ - 0.5 * r * self.conv_prev[1]
-        self.conv_prev = (nu_, nv_)
+            if fluid is not None:
+                cu = np.where(self.conv_prev[2][0], cu, nu_)
+                cv = np.where(self.conv_prev[2][1], cv, nv_)
+        self.conv_prev = (nu_, nv_, fluid)
         self.dt_prev = dt
         return self.u - dt * cu, self.v - dt * cv
 
