@@ -16,8 +16,10 @@ at U. So the drag the fixed solver measures at U (``force_y`` of the obstacle, g
 equals the disc's reduced weight exactly at the coupled solver's terminal speed. The frame runs
 give the drag at a few speeds (a steady flow, the mean over the last 0.3 s); the terminal speed
 is where the drag, interpolated as a power of U between the two speeds that bracket it, equals
-the weight: with ``central`` at every grid, and with ``maccormack`` (the coupled runs' advection,
-``--advected-cfl``) at the coarser ones. The coupled runs release the disc from rest on the axis
+the weight: with ``central`` at every grid, and with ``maccormack`` (the coupled runs' default
+advection, ``--advected-cfl``) at the coarser ones. A coupled or driven run names its advection
+(``tall:4:0.001:central``); each is set against the frame with the same scheme where there is
+one. The coupled runs release the disc from rest on the axis
 of a channel 12 cm tall (y = 10 cm) and take its mean speed from 0.5 to 1 s while it is more than
 8 d above the bottom (the speed wanders by about 1 % as cell rows open, so its largest value is
 one of those swings) and its largest speed; and the same in the benchmark's own box (6 cm tall,
@@ -285,7 +287,9 @@ def markdown(result: dict) -> str:
         vs = "-" if ut is None else f"{(c['u_max'] / ut - 1) * 100:+.1f} %"
         mean = c.get("u_mean")
         vm = "-" if ut is None or mean is None else f"{(mean / ut - 1) * 100:+.1f} %"
-        us = same.get(str(c["cells"])) if c["integrator"] == "maccormack" else None
+        # the frame with the run's own advection (the frames' `central` rows are uts)
+        us = {"maccormack": same.get(str(c["cells"])),
+              "central": ut}.get(c["integrator"])
         va = "-" if us is None or mean is None else f"{(mean / us - 1) * 100:+.1f} %"
         lines.append(f"| {c['box']} | {c['integrator']} | {c['cells']} | {c['step']:g} | "
                      f"{cfl:.2f} | {c['u_max']:.5f} | {c['re_max']:.2f} | {vs} | "

@@ -73,11 +73,11 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     drag at its speed (0.9379 of the weight at 4 cells, 0.9524 at 8, 0.9555 at 16:
     benchmarks/results/sedimentation_frame.md). Measured: 0.9968 and 0.9938 of the weight at 2
     and 0.5 ms, +6.3 / +6.0 %; at 8 cells +4.1 / +3.6 % (2 / 0.5 ms) and at 16 cells +1.8 %
-    (1 ms: the benchmark), about halving with the cell: first order, the semi-Lagrangian
-    advection near the moving wall,
-    whose numerical diffusion at 4 cells (about V dx / 2 = 1.4e-5 m^2/s) exceeds the fluid's
-    viscosity (1e-5). The same disc held at rest in the frame's stream as a coupled body reads
-    the fixed solver's drag to 0.7 %. Bound 7 % at 4 cells; the two steps agree to 0.3 %:
+    (1 ms: the benchmark), about halving with the cell: first order. About half of it is the
+    semi-Lagrangian advection near the moving wall, whose numerical diffusion at 4 cells (about
+    V dx / 2 = 1.4e-5 m^2/s) exceeds the fluid's viscosity (1e-5): the `central` scheme halves
+    the excess (the next test). The same disc held at rest in the frame's stream as a coupled
+    body reads the fixed solver's drag to 0.7 %. Bound 7 % at 4 cells; the two steps agree to 0.3 %:
     bound 0.5 %.
 
     Before the coupled viscous step weighed each face's momentum by its open fraction and
@@ -116,7 +116,8 @@ def test_central_convection_halves_the_moving_discs_excess():
     the body takes the mean of the old and new wall terms), the scenes of the test above, 4
     cells per diameter. Measured (2026-11-30): the driven disc 0.9660 / 0.9694 / 0.9698 of the
     weight at 2 / 1 / 0.5 ms, +3.0 / +3.4 / +3.4 % over the `central` frame, where the
-    `maccormack` runs read +6.2 / +6.0 / +6.0 % (at 8 cells, 2 ms: +1.8 % against +4.1 %); the
+    `maccormack` runs read +6.2 / +6.0 / +6.0 % (at 8 cells, 2 ms: +1.8 % against +4.1 %; at
+    16 cells, 1 ms: +0.8 % against +1.8 %; sedimentation_frame.md); the
     settling disc's mean speed 0.05551 / 0.05532 / 0.05525 m/s, -2.0 / -2.3 / -2.4 % from the
     frame's (`maccormack` -3.9 to -4.1 %). So about half the moving disc's excess was the
     semi-Lagrangian trace's diffusion near the moving wall; the rest is first order in the cell
