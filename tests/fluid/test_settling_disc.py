@@ -101,20 +101,21 @@ def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
 
     * Drag: the C_D that balances the reduced weight at the measured speed against the
       published band of a cylinder in unbounded steady flow at the measured Re
-      (reference/data/cylinder_drag_steady_low_re.csv: 1.61-1.69 at Re 34.3). Measured 2.098
-      at R / dx = 2.4 (23.9 % above the band, with the moving-wall remedies; 25.2 % before them;
-      22 % before the coupled projection became incremental, whose slip at the body's wall took
-      drag off); 1.805 at R / dx = 4 (10.2 %), 1.843 at 6.4 (12.0 %): the grid's share is gone
-      by R / dx = 4; what stays is mostly the closed box (in a box 10 diameters wide C_D is 11 %
-      higher again at R / dx = 4; linear in the blockage, 2 C_D(0.05) - C_D(0.10) = 1.607, 0.3 %
-      above the band), the 5 ms step (halved: C_D +0.4 %, before the remedies) and the
+      (reference/data/cylinder_drag_steady_low_re.csv: 1.61-1.69 at Re 34.6). Measured 2.063
+      at R / dx = 2.4 (22.3 % above the band with the weighted viscous step; 23.9 % with the
+      moving-wall remedies before it, 25.2 % before them; 22 % before the coupled projection
+      became incremental, whose slip at the body's wall took drag off); 1.860 at R / dx = 4
+      (12.8 %), 1.843 at 6.4 (12.0 %): the grid's share is mostly gone by R / dx = 4; what
+      stays is mostly the closed box (in a box 10 diameters wide C_D is 11 % higher again at
+      R / dx = 4; linear in the blockage, 2 C_D(0.05) - C_D(0.10) = 1.662, 3.0 % above the
+      band), the 5 ms step (halved: C_D +0.4 %, before the remedies) and the
       unfinished approach (benchmarks/results/settling_disc.md, settling_disc_dt.md). The
       limit is the case grid's measured error with a margin, 28 %.
-    * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.57 %
+    * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.54 %
       (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
     * Beside MuJoCo (closed forms of its models for the mapped cylinder, which its runs match to
       1e-12): MuJoCo settles at 1.304 (ellipsoid) / 1.246 m/s (inertia box); the resolved fluid
-      at 0.857, 34 % / 31 % slower. The published band alone predicts 23-26 % / 20-23 %
+      at 0.864, 34 % / 31 % slower. The published band alone predicts 23-26 % / 20-23 %
       (U = sqrt((rho_s / rho - 1) pi R g / C_D)): most of the gap is MuJoCo's constant C_D
       (0.906 / 0.993 at its own terminal speed, viscous term included), the rest this grid's
       8-9 % of extra speed deficit."""
