@@ -18,8 +18,11 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# RUN_FLAGS: more options of `crosscheck run` (.ci/run passes --no-cost)
+RUN_FLAGS ?=
+
 run: $(STAMP)
-	$(BIN)/crosscheck run cases --out $(OUT) --workers $(WORKERS) --baseline reports/baseline.json
+	$(BIN)/crosscheck run cases --out $(OUT) --workers $(WORKERS) --baseline reports/baseline.json $(RUN_FLAGS)
 
 # Headless Chromium for the report's browser test (tests/report/test_browser.py): Debian's
 # package, installed where missing (as root, else through sudo). Where it cannot be installed the
