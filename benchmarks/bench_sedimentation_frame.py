@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid.forces import ForceProbe
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -214,6 +215,58 @@ def driven_run(cells: int, step: float, speed: float = DRIVEN_SPEED,
     return {"cells": cells, "step": step, "integrator": integrator, "speed_set": speed,
             "speed": float(np.mean(u)), "speed_change": float((u[-1] - u[0]) / u[0]),
             "force": float(np.mean(force)), "force_over_weight": float(np.mean(force) / WEIGHT),
+            "failure": rec.failure, "wall_s": wall}
+
+
+def held_run(cells: int, step: float, integrator: str = "central",
+             speed: float = DRIVEN_SPEED, duration: float = 1.2) -> dict:
+    """The frame's scene with the disc a coupled body at rest (``DRIVEN_DENSITY``, no gravity;
+    it drifts to about 0.5 % of the stream's speed) at a fixed step: its force measured twice
+    over the last 0.3 s, as its momentum change (``body_force_y``) and by the fluid's momentum
+    balance around it (a ``ForceProbe`` on its place, as the fixed solver measures). Newton's
+    third law makes them equal."""
+    obstacle = (f'obstacles = [{{ name = "disc", circle = {{ center = [{WIDTH / 2}, 0.02], '
+                f'radius = {D / 2} }} }}]\n')
+    fixed_text = (frame_case(speed, cells, integrator).replace("cfl = 0.5\n", "")
+                  .replace("dt = 0.01\n", f"dt = {step}\n")
+                  .replace("duration = 1.5", f"duration = {duration}"))
+    assert obstacle in fixed_text
+    text = (fixed_text.replace(obstacle, "").replace("output = { forces = true }\n", "")
+            .replace('name = "sedimentation-frame-', 'name = "sedimentation-held-')
+            + f"""
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {D / 2} }} }}
+density = {DRIVEN_DENSITY}
+position = [{WIDTH / 2}, 0.02]
+""")
+    fixed = load_case_text(fixed_text, "frame.toml").fluid
+    run = FluidRun(load_case_text(text, "held.toml"), integrator)
+    st = run.st
+    probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
+                       st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
+    balance: list[float] = []
+    step_fluid = st.step
+
+    def step_and_measure(dt, timers, solid=None):
+        out = step_fluid(dt, timers, solid)
+        probe.advance(st.u, st.v, st.spec.density, dt)
+        balance.append(probe.forces(st.u, st.v, st.p, st.spec.density,
+                                    st.spec.dynamic_viscosity, st.gravity)["disc"][1])
+        return out
+
+    st.step = step_and_measure
+    t0 = time.perf_counter()
+    rec = run.record()
+    wall = time.perf_counter() - t0
+    t = np.asarray(rec.t)
+    last = t > t[-1] - 0.3
+    body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[last]))
+    fluid = float(np.mean(balance[-int(round(0.3 / step)):]))
+    return {"cells": cells, "step": step, "integrator": integrator, "speed": speed,
+            "body_over_weight": body / WEIGHT, "fluid_over_weight": fluid / WEIGHT,
+            "third_law_gap": body / fluid - 1.0,
+            "drift": float(np.max(np.abs(np.asarray(rec.series["body_vy.disc"]))) / speed),
             "failure": rec.failure, "wall_s": wall}
 
 

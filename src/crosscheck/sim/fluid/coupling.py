@@ -207,6 +207,10 @@ class Coupling:
         # part of it put on the body ahead of this step's exchange
         self.exchange_rate = np.zeros(3)
         self.predicted_exchange = np.zeros(3)
+        # the boundary of the last step (convective_exchange's "before") and the convective
+        # exchange's velocity change, put on the body with gravity (predict)
+        self.previous: SolidBoundary | None = None
+        self.convective_change = np.zeros(3)
 
     # -- geometry ----------------------------------------------------------------------------
     def build(self) -> SolidBoundary:
@@ -266,6 +270,7 @@ class Coupling:
     # -- the step ----------------------------------------------------------------------------
     def begin_step(self, dt: float) -> SolidBoundary:
         b = self.body
+        self.previous = self.boundary
         b.x = b.x + dt * b.v
         b.angle = b.angle + dt * b.omega
         return self.build()
@@ -282,8 +287,10 @@ class Coupling:
         self.v_start = self.body.v.copy()
         self.omega_start = self.body.omega
         self.predicted_exchange = self.exchange_rate * dt
-        self.body.v = self.body.v + dt * self.gravity + self.predicted_exchange[:2]
+        self.body.v = (self.body.v + dt * self.gravity + self.predicted_exchange[:2]
+                       + self.convective_change[:2])
         self.body.omega = self.body.omega + float(self.predicted_exchange[2])
+        self.convective_change = np.zeros(3)
         self.write_velocity()
 
     def rows(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -358,6 +365,47 @@ class Coupling:
         self.last_force = np.array([
             *(b.mass * ((b.v - self.v_start) / dt - self.gravity)),
             b.inertia * (b.omega - self.omega_start) / dt])
+
+    def convective_exchange(self, u_old: np.ndarray, v_old: np.ndarray, u_new: np.ndarray,
+                            v_new: np.ndarray, flux_u: np.ndarray, flux_v: np.ndarray,
+                            dt: float) -> None:
+        """Give the body the momentum the Eulerian convection (the `central` scheme) made at
+        its wall, so that fluid and body together change their momentum by what flows in
+        through the body's window and nothing else.
+
+        Inside the window, the fluid's momentum counted as the projection counts it (each face
+        by its open fraction) plus the body's part of each face moving at the body's velocity
+        (``frac * u_solid``, the fluid the body displaces) must change, over the convection,
+        by the momentum that flows in across the window's edge: ``-dt rho dx^2 sum(N_all)``,
+        where ``N_all`` (``flux_u``, ``flux_v``; the step's Adams-Bashforth combination) is the
+        convective term computed on every face of the window, those inside the body too, from
+        the same padded velocities (its sum telescopes to the window's edge). The
+        discretisation at the cut cells does not keep that balance (the fluxes between a cut
+        face and the body's samples carry momentum into or out of the fluid that no wall
+        force accounts for); the difference goes to the body, which then feels what the
+        fluid's momentum balance gives it. Measured on a disc held in a Re ~ 14 stream at 4
+        cells per diameter: the body's force exceeded the fluid's momentum balance around it
+        by 2.26 % without this, -0.22 % with it (docs/fluid.md, "Central convection with a
+        moving body"). The moment is left out: the scheme does not conserve angular momentum
+        in the window's interior either, so the same balance would not isolate the wall's.
+        ``u_old``, ``v_old``: the field at the start of the step (on ``previous``, the last
+        step's boundary); ``u_new``, ``v_new``: after the convection, the slivers kept."""
+        g, bnd, old = self.geometry, self.boundary, self.previous
+        if old is None:
+            return
+        moved = np.zeros(2)
+        for comp, (sl, frac_o, sol_o, frac_n, sol_n, qo, qn, flux) in enumerate((
+                (g.ufaces, old.u_frac, old.u_solid, bnd.u_frac, bnd.u_solid, u_old, u_new,
+                 flux_u),
+                (g.vfaces, old.v_frac, old.v_solid, bnd.v_frac, bnd.v_solid, v_old, v_new,
+                 flux_v))):
+            fo, fn = frac_o[sl], frac_n[sl]
+            before = np.sum((1.0 - fo) * qo[sl] + fo * sol_o[sl])
+            after = np.sum((1.0 - fn) * qn[sl] + fn * sol_n[sl])
+            moved[comp] = (after - before) + dt * float(np.sum(flux[sl]))
+        made = self.rho * self.dx * self.dx * moved     # momentum made in the window
+        self.convective_change = np.array([-made[0] / self.body.mass,
+                                           -made[1] / self.body.mass, 0.0])
 
     def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray,
                          links: tuple[np.ndarray, np.ndarray], nu: float, dt: float,

@@ -199,6 +199,10 @@ class FluidState:
         self.no_dist = np.zeros((1, 1))
         # the central scheme: Eulerian convection, Adams-Bashforth 2 with the previous step's term
         self.conv_prev: tuple | None = None   # (N_u, N_v, faces it was computed on)
+        # with a coupled body: the term on every face of its window too, and its combination
+        # this step (Coupling.convective_exchange)
+        self.conv_all_prev: tuple | None = None
+        self.conv_all: tuple | None = None
         self.dt_prev = 0.0
         self.unsupported = None
         if scheme.advection == "central" and self.has_surface:
@@ -311,6 +315,10 @@ class FluidState:
             un[keep] = self.u[keep]
             keep = (bnd.v_dist < 0.0) & (bnd.v_frac < 1.0)
             vn[keep] = self.v[keep]
+        if self.conv_all is not None:
+            # the momentum the convection made at the body's wall goes to the body
+            coupling.convective_exchange(self.u, self.v, un, vn, *self.conv_all, dt)
+            self.conv_all = None
         if self.particles is not None:
             self.particles.advect(up, vp, dt, dx, self.lx, self.ly, bnd.cells, bnd.has_cells)
         t1 = time.perf_counter()
@@ -465,9 +473,29 @@ class FluidState:
             if fluid is not None:
                 cu = np.where(self.conv_prev[2][0], cu, nu_)
                 cv = np.where(self.conv_prev[2][1], cv, nv_)
+        if fluid is not None:
+            self._convect_all(up, vp, dt, None if self.conv_prev is None else r)
         self.conv_prev = (nu_, nv_, fluid)
         self.dt_prev = dt
         return self.u - dt * cu, self.v - dt * cv
+
+    def _convect_all(self, up: np.ndarray, vp: np.ndarray, dt: float, r: float | None) -> None:
+        """The convective term on every face a coupled body covers as well (the body's
+        velocity at its samples, as ``up``, ``vp`` have it), combined as ``_convect`` combines
+        the fluid's: the flux into the body's window whose balance
+        ``Coupling.convective_exchange`` keeps."""
+        bnd = self.boundary
+        us = np.where(bnd.u_dist < 0.0, FLUID, self.ustate).astype(self.ustate.dtype)
+        vs = np.where(bnd.v_dist < 0.0, FLUID, self.vstate).astype(self.vstate.dtype)
+        na = np.empty(self.u.shape)
+        nb = np.empty(self.v.shape)
+        K.convection(up, vp, us, vs, self.dx, na, nb)
+        if r is None or self.conv_all_prev is None:
+            self.conv_all = (na, nb)
+        else:
+            self.conv_all = ((1.0 + 0.5 * r) * na - 0.5 * r * self.conv_all_prev[0],
+                             (1.0 + 0.5 * r) * nb - 0.5 * r * self.conv_all_prev[1])
+        self.conv_all_prev = (na, nb)
 
     def _ramped(self, bnd: SolidBoundary, t: float) -> SolidBoundary:
         """The static boundary with the inflow scaled by its ramp at time ``t``."""
