@@ -6,7 +6,7 @@ the DFG benchmark validates (docs/fluid.md), on the same physics.
     PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation_frame.py
         [--frame-cells 4 8 16] [--advected-cfl 0.1] [--advected-cells 4 8]
         [--speeds 0.052 0.058 0.0692] [--coupled tall:4:0.001 ...]
-        [--driven 4:0.002 ...] [--reuse] [--add]
+        [--driven 4:0.002 ...] [--reuse] [--add [--held 4:0.002:central ...]]
 
 The scene has the parameters of Glowinski, Pan, Hesla and Joseph's single settling disc (a
 closed channel 2 cm wide, d = 0.25 cm, rho_s / rho = 1.25, nu = 0.1 cm^2/s, g = 981 cm/s^2,
@@ -374,6 +374,22 @@ def markdown(result: dict) -> str:
                          f"{r['speed']:.5f} | {r['speed_change'] * 100:+.2f} % | "
                          f"{r['force_over_weight']:.4f} | {' | '.join(cols)} | "
                          f"{r['wall_s']:.0f} |")
+    held = result.get("held") or []
+    if held:
+        lines += ["", "## Held at rest in the frame's stream (Newton's third law)", "",
+                  f"The frame's scene at {DRIVEN_SPEED:g} m/s with the disc a coupled body "
+                  f"{DRIVEN_DENSITY / RHO:g} times denser than water, no gravity: its force over "
+                  "the last 0.3 s of 1.2 s as its momentum change and as the fluid's momentum "
+                  "balance around it (a ForceProbe on its place, the fixed solver's measurement).",
+                  "",
+                  "| advection | cells/d | step (s) | body / weight | fluid balance / weight | "
+                  "gap | drift (of the speed) | wall (s) |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in held:
+            lines.append(f"| {r['integrator']} | {r['cells']} | {r['step']:g} | "
+                         f"{r['body_over_weight']:.4f} | {r['fluid_over_weight']:.4f} | "
+                         f"{r['third_law_gap'] * 100:+.2f} % | {r['drift'] * 100:.2f} % | "
+                         f"{r['wall_s']:.0f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -404,6 +420,17 @@ def _driven_spec(spec: str) -> tuple:
         raise SystemExit(f"--driven: expected cells:step[:integrator], got {spec!r}") from None
 
 
+def _held_spec(spec: str) -> tuple:
+    """``cells:step[:integrator]`` -> the arguments of ``held_run``."""
+    parts = spec.split(":")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        return (int(parts[0]), float(parts[1]), *parts[2:])
+    except ValueError:
+        raise SystemExit(f"--held: expected cells:step[:integrator], got {spec!r}") from None
+
+
 def _write(result: dict) -> str:
     """The results file and its markdown (after each run of a long study: a stop loses none)."""
     OUT.mkdir(parents=True, exist_ok=True)
@@ -425,9 +452,10 @@ def add(args: argparse.Namespace) -> None:
     # every spec read before the first run: a typo costs nothing
     coupled = [_coupled_spec(s) for s in args.coupled or []]
     driven = [_driven_spec(s) for s in args.driven or []]
+    held = [_held_spec(s) for s in args.held or []]
     advected = args.advected_cells or []
-    if not coupled and not driven and not advected:
-        raise SystemExit("--add: name the runs to add with --coupled, --driven and/or "
+    if not coupled and not driven and not held and not advected:
+        raise SystemExit("--add: name the runs to add with --coupled, --driven, --held and/or "
                          "--advected-cells")
     result["recorded"] += f", {time.strftime('%Y-%m-%d %H:%M')} (added rows)"
     for cells in advected:
@@ -439,7 +467,8 @@ def add(args: argparse.Namespace) -> None:
         result.setdefault("terminal_speed_advected", {})[str(cells)] = terminal_speed(rows)
         print(json.dumps(rows), flush=True)
         _write(result)
-    for key, specs, run in (("coupled", coupled, coupled_run), ("driven", driven, driven_run)):
+    for key, specs, run in (("coupled", coupled, coupled_run), ("driven", driven, driven_run),
+                            ("held", held, held_run)):
         for spec in specs:
             row = run(*spec)
             result[key] = [r for r in result.get(key, [])
@@ -465,6 +494,9 @@ def main() -> None:
     ap.add_argument("--driven", nargs="*", default=None,
                     help="cells:step[:integrator] of the disc driven at a constant speed "
                          "(driven_run); default the committed study's")
+    ap.add_argument("--held", nargs="*", default=None,
+                    help="cells:step[:integrator] of the disc held at rest in the frame's "
+                         "stream as a coupled body (held_run; with --add only)")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the frame rows of the last results file (their date stays in "
                          "it) and run only the coupled and driven ones")
@@ -477,6 +509,8 @@ def main() -> None:
     if args.add:
         add(args)
         return
+    if args.held:
+        ap.error("--held: with --add only (a study's held rows are added to its results)")
     # the committed study's runs, unless named
     args.advected_cells = (DEFAULT_ADVECTED_CELLS if args.advected_cells is None
                            else args.advected_cells)

@@ -119,9 +119,10 @@ def test_central_convection_brings_the_coupled_disc_to_its_frame():
 
     * held at rest in the frame's stream, the body's momentum change against the fluid's
       momentum balance around it (``held_run``): -0.22 % (+2.26 % without the convective
-      exchange, +0.29 % at 8 cells; in Stokes flow the gap is 0.02 % either way);
+      exchange; at 8 cells -0.02 %, +0.29 % without; `maccormack` +2.30 %; in Stokes flow the
+      gap is 0.02 %);
     * driven at 0.0544 m/s, against the `central` frame: +0.9 / +0.6 / +0.5 % at 2 / 1 /
-      0.5 ms (window 0.5-1 s; +0.5 % at 8 cells), where without the exchange it read +3.0 /
+      0.5 ms (window 0.5-1 s; +0.5 % at 8 cells, +0.1 % at 16), where without it it read +3.0 /
       +3.4 / +3.4 % and the `maccormack` runs read +6.2 / +6.0 / +6.0 %;
     * released from rest: the mean speed over 0.5-1 s 0.05628 / 0.05632 m/s at 2 / 1 ms, -0.6 %
       from the frame's terminal speed (-2.0 / -2.3 % without the exchange, `maccormack` -4 %).
