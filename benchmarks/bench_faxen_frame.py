@@ -36,7 +36,7 @@ import numpy as np
 
 from crosscheck.reference.fluid_data import faxen_channel_lambda
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import ForceProbe
+from crosscheck.sim.fluid.forces import ForceProbe, balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -181,18 +181,7 @@ def held_run(cells_per_radius: int, step: float) -> dict:
     st = run.st
     probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
                        st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
-    balance: list[tuple[float, float]] = []
-    step_fluid = st.step
-
-    def step_and_measure(dt, timers, solid=None):
-        out = step_fluid(dt, timers, solid)
-        probe.advance(st.u, st.v, st.spec.density, dt)
-        fy = probe.forces(st.u, st.v, st.p, st.spec.density, st.spec.dynamic_viscosity,
-                          st.gravity)["disc"][1]
-        balance.append((st.time, fy))
-        return out
-
-    st.step = step_and_measure
+    balance = balance_after_each_step(st, probe)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0
@@ -201,7 +190,7 @@ def held_run(cells_per_radius: int, step: float) -> dict:
     relative = SPEED - np.asarray(rec.series["body_vy.disc"])
     body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[last] / relative[last]))
     tb = np.array([b[0] for b in balance])
-    fb = np.array([b[1] for b in balance])
+    fb = np.array([b[1]["disc"][1] for b in balance])
     # the fluid's balance per unit relative speed at the same instants
     rel_b = np.interp(tb, t, relative)
     lb = tb > t[-1] - 0.2

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import ForceProbe
+from crosscheck.sim.fluid.forces import ForceProbe, balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -245,24 +245,14 @@ position = [{WIDTH / 2}, 0.02]
     st = run.st
     probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
                        st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
-    balance: list[float] = []
-    step_fluid = st.step
-
-    def step_and_measure(dt, timers, solid=None):
-        out = step_fluid(dt, timers, solid)
-        probe.advance(st.u, st.v, st.spec.density, dt)
-        balance.append(probe.forces(st.u, st.v, st.p, st.spec.density,
-                                    st.spec.dynamic_viscosity, st.gravity)["disc"][1])
-        return out
-
-    st.step = step_and_measure
+    balance = balance_after_each_step(st, probe)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0
     t = np.asarray(rec.t)
     last = t > t[-1] - 0.3
     body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[last]))
-    fluid = float(np.mean(balance[-int(round(0.3 / step)):]))
+    fluid = float(np.mean([f["disc"][1] for _, f in balance[-int(round(0.3 / step)):]]))
     return {"cells": cells, "step": step, "integrator": integrator, "speed": speed,
             "body_over_weight": body / WEIGHT, "fluid_over_weight": fluid / WEIGHT,
             "third_law_gap": body / fluid - 1.0,

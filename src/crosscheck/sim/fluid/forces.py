@@ -190,6 +190,26 @@ class ForceProbe:
         return fx, fy
 
 
+def balance_after_each_step(state: Any, probe: ForceProbe) -> list[tuple[float, dict]]:
+    """Measure ``probe``'s momentum balance on ``state`` (a ``FluidState``) after each of its
+    steps from now on: the list returned fills with ``(time, forces by name)``. For a state
+    whose solver does not measure the probe's windows itself: a coupled body's place, whose
+    fluid balance is checked against the body's momentum change (Newton's third law,
+    benchmarks/bench_faxen_frame.py and bench_sedimentation_frame.py)."""
+    out: list[tuple[float, dict]] = []
+    step = state.step
+
+    def step_and_measure(dt, timers, solid=None):
+        result = step(dt, timers, solid)
+        probe.advance(state.u, state.v, state.spec.density, dt)
+        out.append((state.time, probe.forces(state.u, state.v, state.p, state.spec.density,
+                                             state.spec.dynamic_viscosity, state.gravity)))
+        return result
+
+    state.step = step_and_measure
+    return out
+
+
 def surface_pressure(p: np.ndarray, c_dist: np.ndarray, dx: float, point: Sequence[float],
                      radius_cells: float = 3.0) -> float:
     """Pressure at ``point`` (on or near an obstacle's surface): the least-squares quadratic
