@@ -12,7 +12,8 @@ estimate of the grid-converged value.
     # the same at dt = 0.08 dx (8:dt0.01 12:dt0.00667 16:dt0.005) and 12:dt0.02;
     # with --tag _offaxis the releases off the axis re-measured with the incremental coupled
     # projection (8:offset 12:offset 8:offset+dt0.01); with --tag _offaxis_remedies the
-    # release at 8 with the moving-wall remedies (8:offset; 12 not re-run)
+    # release at 8 with the moving-wall remedies (8:offset; 12 not re-run); with --tag _central
+    # the central scheme at 8 (8:central+dt0.02 8:central+dt0.01)
 
 The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
 public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
@@ -23,9 +24,10 @@ released on the axis 3 d below the closed top, 12 s: it is within 1 % of its ter
 about 4 s, 8 d of travel, and the window 5-12 s covers about 15 d ending about 3 d above the
 bottom).
 
-A run is ``<cells per diameter>[:<variant>]``: ``semi_lagrangian`` (the plain scheme instead of
-MacCormack), ``dt<step>`` (the largest step and the sampling interval, default 0.02, which
-caps the step: CFL 0.34 at U = 2.1 and 8 cells per diameter), ``cfl<number>`` (the fluid's CFL
+A run is ``<cells per diameter>[:<variant>]``: ``semi_lagrangian`` or ``central`` (that scheme
+instead of MacCormack), ``dt<step>`` (the largest step and the sampling interval, default
+0.02, which caps the step: CFL 0.34 at U = 2.1 and 8 cells per diameter), ``cfl<number>`` (the
+fluid's CFL
 number, default 1), ``offset`` (released 1 d
 off the axis as in the benchmark, in a channel 100 d tall for 45 s, the window from 16 s: the
 disc wanders across the axis, so the mean speed needs many diameters of travel); variants
@@ -109,8 +111,8 @@ def parse_run(spec: str) -> dict:
     run = {"cells": int(cells), "variant": variants or "maccormack", "integrator": "maccormack",
            "kw": {}}
     for variant in filter(None, variants.split("+")):
-        if variant == "semi_lagrangian":
-            run["integrator"] = "semi_lagrangian"
+        if variant in ("semi_lagrangian", "central"):
+            run["integrator"] = variant
         elif variant.startswith("dt"):
             run["kw"]["step"] = float(variant[2:])
         elif variant.startswith("cfl"):
