@@ -36,7 +36,7 @@ import numpy as np
 
 from crosscheck.reference.fluid_data import faxen_channel_lambda
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import ForceProbe, balance_after_each_step
+from crosscheck.sim.fluid.forces import balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -179,9 +179,7 @@ def held_run(cells_per_radius: int, step: float) -> dict:
     fixed = load_case_text(frame_case(cells_per_radius, step), "faxen_frame.toml").fluid
     run = FluidRun(scene, "semi_lagrangian")
     st = run.st
-    probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
-                       st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
-    balance = balance_after_each_step(st, probe)
+    balance = balance_after_each_step(st, fixed)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import ForceProbe, balance_after_each_step
+from crosscheck.sim.fluid.forces import balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -243,9 +243,7 @@ position = [{WIDTH / 2}, 0.02]
     fixed = load_case_text(fixed_text, "frame.toml").fluid
     run = FluidRun(load_case_text(text, "held.toml"), integrator)
     st = run.st
-    probe = ForceProbe(fixed.obstacles, fixed.obstacle_names, [fixed.output.forces.window],
-                       st.nx, st.ny, st.dx, (st.lx, st.ly), st.boundary.fluid_area)
-    balance = balance_after_each_step(st, probe)
+    balance = balance_after_each_step(st, fixed)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0

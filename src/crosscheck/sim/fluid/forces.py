@@ -190,12 +190,16 @@ class ForceProbe:
         return fx, fy
 
 
-def balance_after_each_step(state: Any, probe: ForceProbe) -> list[tuple[float, dict]]:
-    """Measure ``probe``'s momentum balance on ``state`` (a ``FluidState``) after each of its
-    steps from now on: the list returned fills with ``(time, forces by name)``. For a state
-    whose solver does not measure the probe's windows itself: a coupled body's place, whose
-    fluid balance is checked against the body's momentum change (Newton's third law,
-    benchmarks/bench_faxen_frame.py and bench_sedimentation_frame.py)."""
+def balance_after_each_step(state: Any, places: Any) -> list[tuple[float, dict]]:
+    """Measure the fluid's momentum balance around the obstacles of ``places`` (a
+    ``FluidSpec`` with forces output: their shapes, names and window) on ``state`` (a
+    ``FluidState``) after each of its steps from now on: the list returned fills with ``(time,
+    forces by name)``. For a state whose solver does not measure those places itself: a
+    coupled body's place, whose fluid balance is checked against the body's momentum change
+    (Newton's third law, benchmarks/bench_faxen_frame.py and bench_sedimentation_frame.py)."""
+    probe = ForceProbe(places.obstacles, places.obstacle_names, [places.output.forces.window],
+                       state.nx, state.ny, state.dx, (state.lx, state.ly),
+                       state.boundary.fluid_area)
     out: list[tuple[float, dict]] = []
     step = state.step
 
