@@ -397,26 +397,22 @@ def _coupled_spec(spec: str) -> tuple:
                          f"'glowinski', got {spec!r}") from None
 
 
-def _driven_spec(spec: str) -> tuple:
-    """``cells:step[:integrator]`` -> the arguments of ``driven_run``."""
-    parts = spec.split(":")
-    try:
-        if len(parts) not in (2, 3):
-            raise ValueError
-        return (int(parts[0]), float(parts[1]), DRIVEN_SPEED, *parts[2:])
-    except ValueError:
-        raise SystemExit(f"--driven: expected cells:step[:integrator], got {spec!r}") from None
-
-
-def _held_spec(spec: str) -> tuple:
-    """``cells:step[:integrator]`` -> the arguments of ``held_run``."""
+def _grid_spec(spec: str, option: str) -> tuple:
+    """``cells:step[:integrator]`` (of ``--driven`` or ``--held``) -> ``(cells, step,
+    [integrator])``."""
     parts = spec.split(":")
     try:
         if len(parts) not in (2, 3):
             raise ValueError
         return (int(parts[0]), float(parts[1]), *parts[2:])
     except ValueError:
-        raise SystemExit(f"--held: expected cells:step[:integrator], got {spec!r}") from None
+        raise SystemExit(f"{option}: expected cells:step[:integrator], got {spec!r}") from None
+
+
+def _driven_spec(spec: str) -> tuple:
+    """``cells:step[:integrator]`` -> the arguments of ``driven_run``."""
+    cells, step, *integrator = _grid_spec(spec, "--driven")
+    return (cells, step, DRIVEN_SPEED, *integrator)
 
 
 def _write(result: dict) -> str:
@@ -440,7 +436,7 @@ def add(args: argparse.Namespace) -> None:
     # every spec read before the first run: a typo costs nothing
     coupled = [_coupled_spec(s) for s in args.coupled or []]
     driven = [_driven_spec(s) for s in args.driven or []]
-    held = [_held_spec(s) for s in args.held or []]
+    held = [_grid_spec(s, "--held") for s in args.held or []]
     advected = args.advected_cells or []
     if not coupled and not driven and not held and not advected:
         raise SystemExit("--add: name the runs to add with --coupled, --driven, --held and/or "

@@ -92,14 +92,10 @@ def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
                 index[i, j] = n
                 n += 1
     diag = np.zeros(n)
-    xm = -np.ones(n, np.int64)
-    xp = -np.ones(n, np.int64)
-    ym = -np.ones(n, np.int64)
-    yp = -np.ones(n, np.int64)
-    wxm = np.zeros(n)
-    wxp = np.zeros(n)
-    wym = np.zeros(n)
-    wyp = np.zeros(n)
+    # each unknown's neighbour and face weight in the directions s = 0-3 (+i, -i, +j, -j),
+    # returned as xp, xm, yp, ym and their weights
+    nb = -np.ones((4, n), np.int64)
+    wt = np.zeros((4, n))
     b = np.zeros(n)
     n_dir = 0
     for i in range(nx):
@@ -130,18 +126,8 @@ def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
                 m = index[a, c]
                 if m >= 0:
                     d += w
-                    if s == 0:
-                        xp[k] = m
-                        wxp[k] = w
-                    elif s == 1:
-                        xm[k] = m
-                        wxm[k] = w
-                    elif s == 2:
-                        yp[k] = m
-                        wyp[k] = w
-                    else:
-                        ym[k] = m
-                        wym[k] = w
+                    nb[s, k] = m
+                    wt[s, k] = w
                 elif phi[a, c] >= 0.0:
                     d += w / _theta(pf, phi[a, c])
                     n_dir += 1
@@ -156,7 +142,7 @@ def build_system(phi, u_frac, v_frac, u, v, u_solid, v_solid):
                      - ((1.0 - f0) * u[i, j] + f0 * u_solid[i, j])
                      + ((1.0 - g1) * v[i, j + 1] + g1 * v_solid[i, j + 1])
                      - ((1.0 - g0) * v[i, j] + g0 * v_solid[i, j]))
-    return index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, n_dir
+    return index, diag, nb[1], nb[0], nb[3], nb[2], wt[1], wt[0], wt[3], wt[2], b, n_dir
 
 
 @njit(cache=True)

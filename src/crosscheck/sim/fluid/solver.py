@@ -457,45 +457,42 @@ class FluidState:
     def _convect(self, up: np.ndarray, vp: np.ndarray, dt: float):
         """``u - dt div(u u)`` by Adams-Bashforth 2 with variable steps (forward Euler on the
         first step): ``(1 + r/2) N^n - (r/2) N^(n-1)``, ``r = dt / dt_prev``. A steady state is
-        then exactly the discrete steady equations, whatever the step."""
-        nu_ = np.empty(self.u.shape)
-        nv_ = np.empty(self.v.shape)
-        K.convection(up, vp, self.ustate, self.vstate, self.dx, nu_, nv_)
-        # the faces the term was computed on (FLUID in the last classification); a moving
-        # body uncovers faces that have no previous term: forward Euler there
-        fluid = ((self.ustate == FLUID), (self.vstate == FLUID)) if self.coupling else None
-        if self.conv_prev is None:
-            cu, cv = nu_, nv_
-        else:
-            r = dt / self.dt_prev
-            cu = (1.0 + 0.5 * r) * nu_ - 0.5 * r * self.conv_prev[0]
-            cv = (1.0 + 0.5 * r) * nv_ - 0.5 * r * self.conv_prev[1]
-            if fluid is not None:
-                cu = np.where(self.conv_prev[2][0], cu, nu_)
-                cv = np.where(self.conv_prev[2][1], cv, nv_)
-        if fluid is not None:
-            self._convect_all(up, vp, dt, None if self.conv_prev is None else r)
-        self.conv_prev = (nu_, nv_, fluid)
-        self.dt_prev = dt
-        return self.u - dt * cu, self.v - dt * cv
+        then exactly the discrete steady equations, whatever the step.
 
-    def _convect_all(self, up: np.ndarray, vp: np.ndarray, dt: float, r: float | None) -> None:
-        """The convective term on every face a coupled body covers as well (the body's
-        velocity at its samples, as ``up``, ``vp`` have it), combined as ``_convect`` combines
-        the fluid's: the flux into the body's window whose balance
-        ``Coupling.convective_exchange`` keeps."""
-        bnd = self.boundary
-        us = np.where(bnd.u_dist < 0.0, FLUID, self.ustate).astype(self.ustate.dtype)
-        vs = np.where(bnd.v_dist < 0.0, FLUID, self.vstate).astype(self.vstate.dtype)
+        With a coupled body the term is computed on the faces inside it too (from the body's
+        velocity at its samples, as ``up``, ``vp`` have it): that is the flux into the body's
+        window whose balance ``Coupling.convective_exchange`` keeps (``self.conv_all``). A
+        fluid face's term does not depend on its neighbours' states, so the fluid's term is
+        the same array with the other faces zeroed. A face the body uncovers has no previous
+        term: forward Euler there."""
+        coupled = self.coupling is not None
+        us, vs = self.ustate, self.vstate
+        if coupled:
+            bnd = self.boundary
+            us = np.where(bnd.u_dist < 0.0, FLUID, us).astype(us.dtype)
+            vs = np.where(bnd.v_dist < 0.0, FLUID, vs).astype(vs.dtype)
         na = np.empty(self.u.shape)
         nb = np.empty(self.v.shape)
         K.convection(up, vp, us, vs, self.dx, na, nb)
-        if r is None or self.conv_all_prev is None:
-            self.conv_all = (na, nb)
+        r = None if self.conv_prev is None else dt / self.dt_prev
+        prev = self.conv_prev or (None, None, None)
+        if coupled:
+            # the faces the fluid's term is computed on (FLUID in the last classification)
+            fluid = (self.ustate == FLUID, self.vstate == FLUID)
+            nu_, nv_ = np.where(fluid[0], na, 0.0), np.where(fluid[1], nb, 0.0)
+            all_prev = self.conv_all_prev or (None, None)
+            self.conv_all = (_ab2(na, all_prev[0], r), _ab2(nb, all_prev[1], r))
+            self.conv_all_prev = (na, nb)
         else:
-            self.conv_all = ((1.0 + 0.5 * r) * na - 0.5 * r * self.conv_all_prev[0],
-                             (1.0 + 0.5 * r) * nb - 0.5 * r * self.conv_all_prev[1])
-        self.conv_all_prev = (na, nb)
+            fluid = None
+            nu_, nv_ = na, nb
+        cu, cv = _ab2(nu_, prev[0], r), _ab2(nv_, prev[1], r)
+        if coupled and r is not None:
+            cu = np.where(prev[2][0], cu, nu_)
+            cv = np.where(prev[2][1], cv, nv_)
+        self.conv_prev = (nu_, nv_, fluid)
+        self.dt_prev = dt
+        return self.u - dt * cu, self.v - dt * cv
 
     def _ramped(self, bnd: SolidBoundary, t: float) -> SolidBoundary:
         """The static boundary with the inflow scaled by its ramp at time ``t``."""
@@ -635,3 +632,11 @@ def fluid_threads() -> int:
     except ValueError:
         n = 1
     return max(1, min(n, numba.config.NUMBA_NUM_THREADS))
+
+
+def _ab2(n: np.ndarray, prev: np.ndarray | None, r: float | None) -> np.ndarray:
+    """Adams-Bashforth 2 with the step ratio ``r = dt / dt_prev``: ``(1 + r/2) n - (r/2)
+    prev``; forward Euler (``n``) with no previous term."""
+    if prev is None or r is None:
+        return n
+    return (1.0 + 0.5 * r) * n - 0.5 * r * prev

@@ -125,14 +125,10 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
             index[i, j] = n
             n += 1
     diag = np.zeros(n)
-    xm = -np.ones(n, np.int64)
-    xp = -np.ones(n, np.int64)
-    ym = -np.ones(n, np.int64)
-    yp = -np.ones(n, np.int64)
-    wxm = np.ones(n)
-    wxp = np.ones(n)
-    wym = np.ones(n)
-    wyp = np.ones(n)
+    # each unknown's neighbour and link weight in the directions of DIRECTIONS (rows 0-3:
+    # +i, -i, +j, -j), returned as the solver's xp, xm, yp, ym and their weights
+    nb = -np.ones((4, n), np.int64)
+    wt = np.ones((4, n))
     b = np.zeros(n)
     vol = np.ones(n)
     inv_k = 1.0 / k
@@ -149,19 +145,8 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                 b[kk] = v * q[i, j] * inv_k + tw * qsolid[i, j]
                 s = link[i, j]
                 di, dj = _step(s)
-                m = index[i + di, j + dj]
-                if s == 0:
-                    xp[kk] = m
-                    wxp[kk] = t
-                elif s == 1:
-                    xm[kk] = m
-                    wxm[kk] = t
-                elif s == 2:
-                    yp[kk] = m
-                    wyp[kk] = t
-                else:
-                    ym[kk] = m
-                    wym[kk] = t
+                nb[s, kk] = index[i + di, j + dj]
+                wt[s, kk] = t
                 continue
             v = 1.0
             if volume_weighted:
@@ -192,18 +177,8 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                         m = -1          # a sliver linked elsewhere: a wall for this sample
                 if m >= 0:
                     d += wgt
-                    if s == 0:
-                        xp[kk] = m
-                        wxp[kk] = wgt
-                    elif s == 1:
-                        xm[kk] = m
-                        wxm[kk] = wgt
-                    elif s == 2:
-                        yp[kk] = m
-                        wyp[kk] = wgt
-                    else:
-                        ym[kk] = m
-                        wym[kk] = wgt
+                    nb[s, kk] = m
+                    wt[s, kk] = wgt
                 elif use_dist and dist[a, c] < 0.0:
                     # the wall lies between the sample and this neighbour, at theta
                     theta = dist[i, j] / (dist[i, j] - dist[a, c])
@@ -217,7 +192,7 @@ def build_viscous(q, state, dist, use_dist, qsolid, frac, link, volume_weighted,
                     r += q[a, c]
             diag[kk] = d
             b[kk] = r
-    return index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b, vol
+    return index, diag, nb[1], nb[0], nb[3], nb[2], wt[1], wt[0], wt[3], wt[2], b, vol
 
 
 @njit(cache=True)
