@@ -5,6 +5,7 @@ estimate of the grid-converged value.
 
     PYTHONPATH=src nice .venv/bin/python benchmarks/bench_sedimentation.py
         [--runs 8 12 16 8:semi_lagrangian 8:offset 12:offset] [--tag _axis] [--markdown-only]
+        [--held 8:0.02 16:0.01]
 
     # the committed studies: sedimentation.json (8, 12, 16 at the step 0.02 or the CFL limit,
     # 8:semi_lagrangian, 8:cfl0.5, 8:offset, 12:offset) and, with --tag _axis, the grid study
@@ -49,6 +50,7 @@ from pathlib import Path
 from crosscheck.compare.fluid_metrics import fluid_metrics
 from crosscheck.reference.fluid_data import wachs_sedimentation
 from crosscheck.scene.loader import load_case_text
+from crosscheck.sim.fluid.forces import balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -105,6 +107,124 @@ params = {{ settle_time = {settle} }}
 '''
 
 
+HELD_SPEED = 2.1        # about the terminal speed (Wachs: 2.0988)
+HELD_DENSITY = 1.0e7    # 10^4 times the fluid's: the disc drifts by about 0.3 % of the stream
+
+
+def held_text(cells: int, step: float, integrator: str, duration: float, body: bool) -> str:
+    """The disc's frame at Wachs's Reynolds number: the disc 8 d above a uniform inflow at
+    ``HELD_SPEED``, both walls moving with the stream, the top open 16 d downstream, no gravity;
+    ``body``: the disc a coupled body at rest (``HELD_DENSITY``), else a fixed obstacle whose
+    place the fluid's momentum balance is measured on."""
+    width, height, dx = 4.0 * D, 24.0 * D, D / cells
+    disc = (f'obstacles = [{{ name = "disc", circle = {{ center = [{width / 2}, {8.0 * D}], '
+            f'radius = {D / 2} }} }}]\noutput = {{ forces = true }}\n')
+    coupled = f"""
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {D / 2} }} }}
+density = {HELD_DENSITY}
+position = [{width / 2}, {8.0 * D}]
+"""
+    text = f'''[case]
+name = "sedimentation-held-{cells}"
+description = "The Wachs disc held in a stream at its terminal speed, walls moving with it."
+tags = ["fluid", "viscous"]
+dimension = 2
+
+[run]
+duration = {duration}
+dt = {step}
+sample_every = {step}
+engines = ["inhouse"]
+integrators = {{ inhouse = ["{integrator}"] }}
+
+[fluid]
+domain = [{width}, {height}]
+resolution = [{int(round(width / dx))}, {int(round(height / dx))}]
+density = 1000.0
+kinematic_viscosity = {NU}
+walls = {{ bottom = "inflow", top = "open", left = "solid", right = "solid" }}
+inflow = {{ profile = "uniform", speed = {HELD_SPEED} }}
+lid = [{{ side = "left", speed = {HELD_SPEED} }}, {{ side = "right", speed = {HELD_SPEED} }}]
+'''
+    return text + (coupled if body else disc)
+
+
+def held_run(cells: int, step: float, integrator: str = "maccormack",
+             duration: float = 12.0) -> dict:
+    """Newton's third law at Wachs's Reynolds number: the disc a coupled body held at rest in
+    the stream, its force over the last third of the run as its momentum change and as the
+    fluid's momentum balance around it (a ``ForceProbe`` on its place, as the fixed solver
+    measures). The wake sheds: the streamwise forces are means over several periods."""
+    places = load_case_text(held_text(cells, step, integrator, duration, False),
+                            "frame.toml").fluid
+    run = FluidRun(load_case_text(held_text(cells, step, integrator, duration, True),
+                                  "held.toml"), integrator)
+    balance = balance_after_each_step(run.st, places)
+    t0 = time.perf_counter()
+    rec = run.record()
+    wall = time.perf_counter() - t0
+    t = [float(x) for x in rec.t]
+    start = t[-1] - duration / 3.0
+    force = rec.series["body_force_y.disc"]
+    body = sum(f for x, f in zip(t, force, strict=True) if x > start)
+    body /= sum(1 for x in t if x > start)
+    window = [f["disc"][1] for x, f in balance if x > start]
+    fluid = sum(window) / len(window)
+    drift = max(abs(v) for v in rec.series["body_vy.disc"]) / HELD_SPEED
+    return {"run": f"{cells}:{step:g}:{integrator}", "cells_per_diameter": cells, "step": step,
+            "integrator": integrator, "duration": duration, "body_force": body,
+            "fluid_balance": fluid, "third_law_gap": body / fluid - 1.0,
+            "drag_coefficient": body / (0.5 * 1000.0 * HELD_SPEED ** 2 * D), "drift": drift,
+            "failure": rec.failure, "wall_s": wall, "load": os.getloadavg()[0]}
+
+
+def held_markdown(rows: list[dict]) -> str:
+    lines = ["# Wachs's disc held in its own frame: Newton's third law at Re ~ 260", "",
+             "Written by `benchmarks/bench_sedimentation.py --held`. The disc (d = 1, nu = "
+             f"0.008088, Re = {HELD_SPEED * D / NU:.0f}) 8 d above a uniform inflow at "
+             f"{HELD_SPEED} in a channel 4 d wide whose walls move with the stream, a coupled "
+             "body 10^4 times denser than the fluid, no gravity: its force over the last third "
+             "of the run as its momentum change and by the fluid's momentum balance around it "
+             "(a ForceProbe on its place). Newton's third law makes them equal; C_D here is the "
+             "held disc's (not the settling benchmark's: the run is short of a developed wake).",
+             "", "| run | d/dx | step | advection | body force | fluid balance | gap | C_D "
+             "| drift (of the speed) | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r.get("failure"):
+            lines.append(f"| {r['run']} | failed: {r['failure']} |")
+            continue
+        lines.append(f"| {r['run']} | {r['cells_per_diameter']} | {r['step']:g} | "
+                     f"{r['integrator']} | {r['body_force']:.2f} | {r['fluid_balance']:.2f} | "
+                     f"{r['third_law_gap']:+.2%} | {r['drag_coefficient']:.4f} | "
+                     f"{r['drift']:.2%} | {r['wall_s']:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
+def held_study(specs: list[str]) -> None:
+    """``--held cells:step[:integrator] ...``: rows added to (or replaced in)
+    ``sedimentation_held.{json,md}``."""
+    parsed = []
+    for spec in specs:
+        parts = spec.split(":")
+        try:
+            if len(parts) not in (2, 3):
+                raise ValueError
+            parsed.append((int(parts[0]), float(parts[1]), *parts[2:]))
+        except ValueError:
+            raise SystemExit(f"--held: expected cells:step[:integrator], got {spec!r}") from None
+    path = OUT / f"{STEM}_held.json"
+    rows = json.loads(path.read_text())["runs"] if path.exists() else []
+    for args in parsed:
+        row = held_run(*args)
+        rows = [r for r in rows if r["run"] != row["run"]] + [row]
+        OUT.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"runs": rows, "machine": platform.machine()}, indent=2))
+        (OUT / f"{STEM}_held.md").write_text(held_markdown(rows))
+        print(json.dumps(row), flush=True)
+
+
 def parse_run(spec: str) -> dict:
     """``<cells>[:<variant>[+<variant>...]]`` -> the run's cells, integrator and case options."""
     cells, _, variants = spec.partition(":")
@@ -130,7 +250,13 @@ def main() -> None:
     ap.add_argument("--markdown-only", action="store_true")
     ap.add_argument("--tag", default="", help="write sedimentation<tag>.{json,md} (a study "
                     "beside the main one)")
+    ap.add_argument("--held", nargs="+", default=None, metavar="CELLS:STEP[:INTEGRATOR]",
+                    help="instead: the disc held in its frame, Newton's third law "
+                    "(sedimentation_held.{json,md})")
     args = ap.parse_args()
+    if args.held:
+        held_study(args.held)
+        return
     stem = f"{STEM}{args.tag}"
     path = OUT / f"{stem}.json"
     result = json.loads(path.read_text()) if path.exists() else {

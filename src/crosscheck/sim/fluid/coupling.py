@@ -63,11 +63,21 @@ from crosscheck.scene.shapes import Placed
 from crosscheck.sim.fluid import bodygeom
 from crosscheck.sim.fluid.boundary import SolidBoundary
 from crosscheck.sim.fluid.boundary import SolidStop as CouplingStop
+from crosscheck.sim.fluid.pressure import AIR
 from crosscheck.sim.fluid.viscosity import DIRECTIONS, sliver_weights
 
 # The body's geometry is computed in a window of its bounding box grown by this many cells
 # (distances beyond it are only ever compared with zero: path clipping, ghost-fluid walls).
 WINDOW_MARGIN = 4
+
+# The convective exchange balances the momentum of the faces within this many cells of the
+# body's wall (and those inside it): where a trace can read the body. MacCormack's step reads
+# its field through two bilinear interpolations (one cell each), the backward one from a
+# departure point up to the CFL limit (half a cell) away. Inside the band a semi-Lagrangian
+# trace's own loss of momentum is not the wall's; measured on a disc held in a Re ~ 14 stream,
+# the whole window (4 cells beyond the body) gave the body -0.25 / -0.53 % of the fluid's
+# balance at 4 / 8 cells, this band -0.39 / -0.07 % (docs/fluid.md).
+CONVECTIVE_BAND_CELLS = 2.5
 # Closest the body may come to a closed side or an obstacle, in cells (its cut faces and those
 # of the other solid must not share a cell: a face has one solid velocity).
 CLEARANCE_CELLS = 1.5
@@ -369,43 +379,56 @@ class Coupling:
     def convective_exchange(self, u_old: np.ndarray, v_old: np.ndarray, u_new: np.ndarray,
                             v_new: np.ndarray, flux_u: np.ndarray, flux_v: np.ndarray,
                             dt: float) -> None:
-        """Give the body the momentum the Eulerian convection (the `central` scheme) made at
-        its wall, so that fluid and body together change their momentum by what flows in
-        through the body's window and nothing else.
+        """Give the body the momentum the convection made at its wall, so that fluid and body
+        together change their momentum by what flows in from outside the body's neighbourhood
+        and nothing else.
 
-        Inside the window, the fluid's momentum counted as the projection counts it (each face
-        by its open fraction) plus the body's part of each face moving at the body's velocity
-        (``frac * u_solid``, the fluid the body displaces) must change, over the convection,
-        by the momentum that flows in across the window's edge: ``-dt rho dx^2 sum(N_all)``,
-        where ``N_all`` (``flux_u``, ``flux_v``; the step's Adams-Bashforth combination) is the
-        convective term computed on every face of the window, those inside the body too, from
-        the same padded velocities (its sum telescopes to the window's edge). The
-        discretisation at the cut cells does not keep that balance (the fluxes between a cut
-        face and the body's samples carry momentum into or out of the fluid that no wall
-        force accounts for); the difference goes to the body, which then feels what the
+        Over the faces within ``CONVECTIVE_BAND_CELLS`` of the body's wall and those inside it,
+        the fluid's momentum counted as the projection counts it (each face by its open
+        fraction) plus the body's part of each face moving at the body's velocity (``frac *
+        u_solid``, the fluid the body displaces) must change, over the convection, by the
+        momentum that flows in across the band's edge: ``-dt rho dx^2 sum(N_all)``, where
+        ``N_all`` (``flux_u``, ``flux_v``) is the central convective term computed on every face
+        of the window, those inside the body too, from the same padded velocities (in divergence
+        form, its sum over any set of faces telescopes to the set's edge). With the `central`
+        scheme it is the step's own Adams-Bashforth combination; after a semi-Lagrangian or
+        MacCormack trace it is the term of the field the trace starts from (an estimate of the
+        flux the trace carried, to first order in the step). The discretisation at the cut
+        cells does not keep that balance (the fluxes between a cut face and the body's samples,
+        or a trace reading the body's velocity, carry momentum into or out of the fluid that no
+        wall force accounts for); the difference goes to the body, which then feels what the
         fluid's momentum balance gives it. Measured on a disc held in a Re ~ 14 stream at 4
-        cells per diameter: the body's force exceeded the fluid's momentum balance around it
-        by 2.26 % without this, -0.22 % with it (docs/fluid.md, "Central convection with a
-        moving body"). The moment is left out: the scheme does not conserve angular momentum
-        in the window's interior either, so the same balance would not isolate the wall's.
-        ``u_old``, ``v_old``: the field at the start of the step (on ``previous``, the last
-        step's boundary); ``u_new``, ``v_new``: after the convection, the slivers kept."""
+        cells per diameter, the body's force against the fluid's momentum balance around it:
+        `central` +2.26 % without this, -0.22 % with it; `maccormack` +2.30 / -0.39 %;
+        `semi_lagrangian` -7.95 / -1.54 % (docs/fluid.md, "The convective exchange"). The
+        moment is left out: the scheme does not conserve angular momentum in the band's
+        interior either, so the same balance would not isolate the wall's. ``u_old``,
+        ``v_old``: the field at the start of the step (on ``previous``, the last step's
+        boundary); ``u_new``, ``v_new``: after the convection, the slivers kept."""
         g, bnd, old = self.geometry, self.boundary, self.previous
         if old is None:
             return
         moved = np.zeros(2)
-        for comp, (sl, frac_o, sol_o, frac_n, sol_n, qo, qn, flux) in enumerate((
-                (g.ufaces, old.u_frac, old.u_solid, bnd.u_frac, bnd.u_solid, u_old, u_new,
-                 flux_u),
-                (g.vfaces, old.v_frac, old.v_solid, bnd.v_frac, bnd.v_solid, v_old, v_new,
-                 flux_v))):
+        limit = CONVECTIVE_BAND_CELLS * self.dx
+        for comp, (sl, dist, frac_o, sol_o, frac_n, sol_n, qo, qn, flux) in enumerate((
+                (g.ufaces, g.u_dist, old.u_frac, old.u_solid, bnd.u_frac, bnd.u_solid, u_old,
+                 u_new, flux_u),
+                (g.vfaces, g.v_dist, old.v_frac, old.v_solid, bnd.v_frac, bnd.v_solid, v_old,
+                 v_new, flux_v))):
             fo, fn = frac_o[sl], frac_n[sl]
-            before = np.sum((1.0 - fo) * qo[sl] + fo * sol_o[sl])
-            after = np.sum((1.0 - fn) * qn[sl] + fn * sol_n[sl])
-            moved[comp] = (after - before) + dt * float(np.sum(flux[sl]))
+            m = (dist < limit).astype(float)     # the band around the wall, the body inside
+            before = np.sum(m * ((1.0 - fo) * qo[sl] + fo * sol_o[sl]))
+            after = np.sum(m * ((1.0 - fn) * qn[sl] + fn * sol_n[sl]))
+            moved[comp] = (after - before) + dt * float(np.sum(m * flux[sl]))
         made = self.rho * self.dx * self.dx * moved     # momentum made in the window
         self.convective_change = np.array([-made[0] / self.body.mass,
                                            -made[1] / self.body.mass, 0.0])
+
+    def window_is_wet(self, ustate: np.ndarray, vstate: np.ndarray) -> bool:
+        """Whether every face of the body's window is fluid or solid (no air: a free surface
+        in the window moves momentum across faces the balance cannot follow)."""
+        g = self.geometry
+        return bool(np.all(ustate[g.ufaces] != AIR) and np.all(vstate[g.vfaces] != AIR))
 
     def viscous_exchange(self, u_new: np.ndarray, v_new: np.ndarray,
                          links: tuple[np.ndarray, np.ndarray], nu: float, dt: float,

@@ -319,6 +319,17 @@ class FluidState:
             # the momentum the convection made at the body's wall goes to the body
             coupling.convective_exchange(self.u, self.v, un, vn, *self.conv_all, dt)
             self.conv_all = None
+        elif (coupling is not None and self.incremental and self.prescribed is None and bnd.cut
+              and coupling.window_is_wet(self.ustate, self.vstate)):
+            # the same balance after a trace, whose flux across the band's edge is estimated
+            # by the central term of the field it starts from. Not with a free surface in the
+            # window (air faces carry extrapolated velocities, not momentum), nor in an inviscid
+            # fluid, whose slivers the trace resets to the body's velocity every step (above:
+            # they are kept with viscosity), a change the balance would charge to the body (the
+            # impulsively started disc of test_coupling.py kept 0.4773 of its speed so, 0.4828
+            # without, against about 0.495 from the added mass)
+            na, nb = self._convection_all(up, vp)
+            coupling.convective_exchange(self.u, self.v, un, vn, na, nb, dt)
         if self.particles is not None:
             self.particles.advect(up, vp, dt, dx, self.lx, self.ly, bnd.cells, bnd.has_cells)
         t1 = time.perf_counter()
@@ -466,14 +477,12 @@ class FluidState:
         the same array with the other faces zeroed. A face the body uncovers has no previous
         term: forward Euler there."""
         coupled = self.coupling is not None
-        us, vs = self.ustate, self.vstate
         if coupled:
-            bnd = self.boundary
-            us = np.where(bnd.u_dist < 0.0, FLUID, us).astype(us.dtype)
-            vs = np.where(bnd.v_dist < 0.0, FLUID, vs).astype(vs.dtype)
-        na = np.empty(self.u.shape)
-        nb = np.empty(self.v.shape)
-        K.convection(up, vp, us, vs, self.dx, na, nb)
+            na, nb = self._convection_all(up, vp)
+        else:
+            na = np.empty(self.u.shape)
+            nb = np.empty(self.v.shape)
+            K.convection(up, vp, self.ustate, self.vstate, self.dx, na, nb)
         r = None if self.conv_prev is None else dt / self.dt_prev
         prev = self.conv_prev or (None, None, None)
         if coupled:
@@ -493,6 +502,18 @@ class FluidState:
         self.conv_prev = (nu_, nv_, fluid)
         self.dt_prev = dt
         return self.u - dt * cu, self.v - dt * cv
+
+    def _convection_all(self, up: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The central convective term on the fluid's faces and on those inside the coupled
+        body (from the body's velocity at its samples, as ``up``, ``vp`` have it): summed over
+        the body's window it telescopes to the momentum flux across the window's edge."""
+        bnd = self.boundary
+        us = np.where(bnd.u_dist < 0.0, FLUID, self.ustate).astype(self.ustate.dtype)
+        vs = np.where(bnd.v_dist < 0.0, FLUID, self.vstate).astype(self.vstate.dtype)
+        na = np.empty(self.u.shape)
+        nb = np.empty(self.v.shape)
+        K.convection(up, vp, us, vs, self.dx, na, nb)
+        return na, nb
 
     def _ramped(self, bnd: SolidBoundary, t: float) -> SolidBoundary:
         """The static boundary with the inflow scaled by its ramp at time ``t``."""
