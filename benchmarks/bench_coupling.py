@@ -2,6 +2,7 @@
 box as a fixed obstacle and with no box, at 128^2 and 256^2, in a sloshing tank.
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_coupling.py [--repeats 3] [--sizes 128 256]
+        [--scene floating|submerged]
 
 The scene is ``cases/fluid/floating_box.toml``'s box (0.2 x 0.1 m, density 500, released 0.01 m
 above its draft) in a square tank 1 m wide, water 0.5 m deep with its first sloshing mode
@@ -13,6 +14,12 @@ resolution overridden. Three variants at each grid, the same steps where the CFL
 * ``obstacle``: the box at its release pose as a fixed obstacle (cut cells, no coupling): the
   uncoupled step at the same resolution with the same solid in the water;
 * ``none``: the tank alone.
+
+``--scene submerged`` (``coupling_submerged.{json,md}``): a disc (R = 0.05 m, density 1100)
+released 0.25 m below the lid of the same tank closed and full of fluid, the lid sliding at
+0.2 m/s so that every variant's fluid moves; viscous only. There the body's neighbourhood has
+no free surface, so the coupled step runs the convective exchange as well as the viscous one
+(the floating box's does not: docs/fluid.md, "The convective exchange after a trace").
 
 Each at two fluids: inviscid, and viscous (``kinematic_viscosity`` ``--viscosity``, 1e-4 m^2/s
 by default, the implicit viscous step in all three variants). A viscous coupled step does more
@@ -42,20 +49,43 @@ from crosscheck.sim.fluid import run_fluid
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results"
 
-BODY = """
+# the floating box in a sloshing tank (a free surface through the body's neighbourhood: the
+# convective exchange does not run there), and a disc settling in a closed tank full of fluid
+# (no free surface: the viscous and the convective exchange both run, docs/fluid.md)
+SCENES = {
+    "floating": {
+        "body": """
 [[bodies]]
 name = "box"
 shape = { box = { size = [0.2, 0.1] } }
 density = 500.0
 position = [0.5, 0.51]
-"""
-OBSTACLE = 'obstacles = [{ box = { center = [0.5, 0.51], size = [0.2, 0.1] } }]'
+""",
+        "obstacle": 'obstacles = [{ box = { center = [0.5, 0.51], size = [0.2, 0.1] } }]',
+        "fluid": """walls = { top = "open" }
+initial = [{ layer = { depth = 0.5, amplitude = 0.02, wavelength = 2.0 } }]""",
+        "stem": "coupling",
+    },
+    "submerged": {
+        "body": """
+[[bodies]]
+name = "disc"
+shape = { circle = { radius = 0.05 } }
+density = 1100.0
+position = [0.5, 0.75]
+""",
+        "obstacle": 'obstacles = [{ circle = { center = [0.5, 0.75], radius = 0.05 } }]',
+        "fluid": 'lid = [{ side = "top", speed = 0.2 }]',
+        "stem": "coupling_submerged",
+    },
+}
 
 
-def scene(variant: str, n: int, nu: float = 0.0):
+def scene(variant: str, n: int, nu: float = 0.0, kind: str = "floating"):
+    sc = SCENES[kind]
     text = f"""
 [case]
-name = "bench-coupling-{variant}{'-viscous' if nu > 0 else ''}"
+name = "bench-coupling-{kind}-{variant}{'-viscous' if nu > 0 else ''}"
 dimension = 2
 [run]
 duration = 1.0
@@ -63,21 +93,20 @@ dt = 0.005
 sample_every = 0.05
 [effects]
 gravity = [0.0, -9.81]
-{BODY if variant == "coupled" else ""}
+{sc["body"] if variant == "coupled" else ""}
 [fluid]
 domain = [1.0, 1.0]
 resolution = [{n}, {n}]
-walls = {{ top = "open" }}
-initial = [{{ layer = {{ depth = 0.5, amplitude = 0.02, wavelength = 2.0 }} }}]
+{sc["fluid"]}
 {f'kinematic_viscosity = {nu}' if nu > 0 else ''}
 {'viscosity_solver = "implicit"' if nu > 0 else ''}
-{OBSTACLE if variant == "obstacle" else ""}
+{sc["obstacle"] if variant == "obstacle" else ""}
 """
     return load_case_text(text, f"bench-{variant}.toml")
 
 
-def run_once(variant: str, n: int, nu: float = 0.0) -> dict:
-    rec = run_fluid(scene(variant, n, nu), "semi_lagrangian")
+def run_once(variant: str, n: int, nu: float = 0.0, kind: str = "floating") -> dict:
+    rec = run_fluid(scene(variant, n, nu, kind), "semi_lagrangian")
     m = rec.meta
     return {"ms_per_step": m["ms_per_step"], "phases": m["ms_per_step_phases"],
             "steps": m["dt"]["steps"],
@@ -91,17 +120,27 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     ap.add_argument("--viscosity", type=float, default=1e-4,
                     help="the viscous set's kinematic viscosity, m^2/s (0: inviscid only)")
+    ap.add_argument("--scene", choices=sorted(SCENES), default="floating",
+                    help="floating: the box in a sloshing tank (coupling.{json,md}); submerged: "
+                    "a disc settling in a closed tank full of fluid, viscous only "
+                    "(coupling_submerged.{json,md})")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args()
+    kind = args.scene
     fluids = [0.0] + ([args.viscosity] if args.viscosity > 0 else [])
+    if kind == "submerged":
+        if args.viscosity <= 0:
+            raise SystemExit("--scene submerged: the exchanges it measures need a viscous "
+                             "fluid (--viscosity > 0)")
+        fluids = [args.viscosity]
     for nu in fluids:
         for v in ("coupled", "obstacle", "none"):      # warm-up: load or compile the kernels
-            run_once(v, 32, nu)
+            run_once(v, 32, nu, kind)
     results = []
     for nu, n in ((nu, n) for nu in fluids for n in args.sizes):
         row = {"n": n, "nu": nu}
         for v in ("coupled", "obstacle", "none"):
-            runs = [run_once(v, n, nu) for _ in range(args.repeats)]
+            runs = [run_once(v, n, nu, kind) for _ in range(args.repeats)]
             best = min(runs, key=lambda r: r["ms_per_step"])
             best["median_ms_per_step"] = statistics.median(r["ms_per_step"] for r in runs)
             row[v] = best
@@ -114,16 +153,23 @@ def main() -> None:
         results.append(row)
     doc = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                        "load_average": os.getloadavg()},
-           "repeats": args.repeats, "results": results}
+           "repeats": args.repeats, "scene": kind, "results": results}
+    stem = SCENES[kind]["stem"]
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "coupling.json").write_text(json.dumps(doc, indent=1, default=str))
-    (args.out / "coupling.md").write_text(markdown(doc))
+    (args.out / f"{stem}.json").write_text(json.dumps(doc, indent=1, default=str))
+    (args.out / f"{stem}.md").write_text(markdown(doc))
     print(markdown(doc))
 
 
 def markdown(doc: dict) -> str:
     phases = ("advection", "redistancing", "forces", "projection", "extension", "coupling")
-    lines = ["# Coupled step cost (benchmarks/bench_coupling.py)", "",
+    kind = doc.get("scene", "floating")
+    what = {"floating": "the floating box in a sloshing tank",
+            "submerged": "a disc (R = 0.05, density 1100) settling in a closed tank full of "
+                         "fluid whose lid slides at 0.2 m/s, released 0.25 m below the lid: the "
+                         "viscous and the convective exchange both run"}[kind]
+    lines = [f"# Coupled step cost (benchmarks/bench_coupling.py --scene {kind})", "",
+             f"The scene: {what}. "
              f"Load average at the end: {doc['machine']['load_average']}; best of "
              f"{doc['repeats']} runs (median in coupling.json), one thread.", "",
              "| grid | fluid | variant | ms/step | " + " | ".join(phases) + " | CG its | steps |",
