@@ -380,9 +380,9 @@ def parse_fluid(fields: Fields, dimension: int, statics: tuple = (),
                             choices=("fast_sweeping", "fast_marching"))
     ptol = f.number("pressure_tolerance", 1e-6, positive=True)
     psolver = f.string("pressure_solver", "auto", choices=("auto", "mic0", "amg"))
-    if psolver == "amg" and bodies:
-        raise f.error("pressure_solver", '"auto" or "mic0" (the coupled solve with a body has '
-                      "no multigrid)", psolver)
+    if psolver == "amg" and bodies and parts:
+        raise f.error("pressure_solver", '"auto" or "mic0" (the coupled solve with a body and a '
+                      "free surface has no multigrid)", psolver)
     min_vol = f.number("min_volume_fraction", 0.5, nonnegative=True)
 
     prescribed = None

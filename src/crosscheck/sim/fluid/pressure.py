@@ -485,12 +485,15 @@ def apply_pressure_coupled(pt, phi, u, v, ustate, vstate, coupling, unknown) -> 
     coupling.apply_impulse(_body_response(jk, jv, dinv, gather(index, pt, n)))
 
 
-def project_coupled(phi, bnd, u, v, ustate, vstate, p_guess, tol, coupling, max_iter=2000):
+def project_coupled(phi, bnd, u, v, ustate, vstate, p_guess, tol, coupling, max_iter=2000,
+                    amg=None, amg_min=0):
     """``project`` with the coupled body's velocity as unknowns (Batty, Bertails and Bridson
     2007; coupling.py): the solid faces and samples of the body carry its predicted velocity
     ``V*`` (so the right-hand side is ``-div*``), the matrix gains ``J D J^T``, and after the
-    solve the body's velocity gains ``D J^T pt`` (``coupling.apply_impulse``). Returns
-    (iterations, fluid cell count, largest |divergence| residual before the solve)."""
+    solve the body's velocity gains ``D J^T pt`` (``coupling.apply_impulse``). ``amg``
+    (``amg.CoupledAMG``, kept by the caller; a flow with no free surface): solve with it when
+    the system has at least ``amg_min`` unknowns, else MIC(0)-PCG. Returns (iterations, fluid
+    cell count, largest |divergence| residual before the solve)."""
     (index, diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, b,
      n_dir) = build_system(phi, bnd.u_frac, bnd.v_frac, u, v, bnd.u_solid, bnd.v_solid)
     n = diag.shape[0]
@@ -509,8 +512,15 @@ def project_coupled(phi, bnd, u, v, ustate, vstate, p_guess, tol, coupling, max_
     b[jk] -= jv @ dv
     x = gather(index, p_guess, n)
     bmax = float(np.max(np.abs(b)))
-    its = pcg_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, b, x,
-                      max(tol * bmax, 1e-13), max_iter)
+    stop = max(tol * bmax, 1e-13)
+    if amg is not None and n >= amg_min:
+        g = coupling.geometry
+        its = amg.solve(phi, coupling.static, index, (g.i0, g.i1, g.j0, g.j1),
+                        (diag, xm, xp, ym, yp, wxm, wxp, wym, wyp), jk, jv, dinv, b, x, stop,
+                        max_iter)
+    else:
+        its = pcg_lowrank(diag, xm, xp, ym, yp, wxm, wxp, wym, wyp, jk, jv, dinv, b, x, stop,
+                          max_iter)
     scatter(index, x, p_guess)
     apply_pressure(p_guess, phi, u, v, ustate, vstate)
     coupling.apply_impulse(_body_response(jk, jv, dinv, x))

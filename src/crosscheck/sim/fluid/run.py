@@ -245,7 +245,9 @@ class FluidRun:
                                     # many were built (1 for a matrix that never changed)
                                     "solver": ("amg" if st.amg is not None and st.amg.setups
                                                else "mic0"),
-                                    "amg_setups": st.amg.setups if st.amg is not None else 0},
+                                    "amg_setups": st.amg.setups if st.amg is not None else 0,
+                                    # coupled solves the multigrid handed to MIC(0)
+                                    "amg_fallbacks": getattr(st.amg, "fallbacks", 0)},
             "fluid_cells_initial": st.fluid_cells0,
             "density": spec.density, "kinematic_viscosity": spec.kinematic_viscosity,
             "gravity": self.gravity.tolist(), "sample_every": self.sample_every,

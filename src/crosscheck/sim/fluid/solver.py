@@ -30,7 +30,7 @@ import numpy as np
 from crosscheck.scene.fluid import FluidSpec, Layer
 from crosscheck.sim.fluid import kernels as K
 from crosscheck.sim.fluid import levelset as LS
-from crosscheck.sim.fluid.amg import AMG_MIN_UNKNOWNS, StaticAMG
+from crosscheck.sim.fluid.amg import AMG_MIN_UNKNOWNS, CoupledAMG, StaticAMG
 from crosscheck.sim.fluid.boundary import (
     SolidBoundary,
     impose,
@@ -145,8 +145,11 @@ class FluidState:
         # them it is built once, and a large one is solved by multigrid (sim/fluid/amg.py)
         self.amg = None
         self.amg_min = AMG_MIN_UNKNOWNS if spec.pressure_solver == "auto" else 0
-        if spec.pressure_solver == "amg" or (spec.pressure_solver == "auto"
-                                             and not self.has_surface and not spec.bodies):
+        if spec.pressure_solver != "mic0" and not self.has_surface:
+            # a coupled body's matrix changes every step: the static domain's hierarchy with an
+            # exact solve of the body's window (amg.CoupledAMG)
+            self.amg = CoupledAMG() if spec.bodies else StaticAMG()
+        elif spec.pressure_solver == "amg" and not spec.bodies:
             self.amg = StaticAMG()
         # band of extended velocity: the backtrace goes at most cfl_limit cells, the midpoint
         # evaluation and the bilinear stencil need up to two more cells beyond it
@@ -427,7 +430,8 @@ class FluidState:
                 # pressure itself
                 pt = (self.p_increment if self.incremental else self.p) * scale
                 its, _, _ = project_coupled(self.phi, bnd, un, vn, self.ustate, self.vstate, pt,
-                                            spec.pressure_tolerance, coupling)
+                                            spec.pressure_tolerance, coupling, amg=self.amg,
+                                            amg_min=self.amg_min)
                 if self.incremental:
                     self.p_increment = pt / scale
                     self.p = self.p + self.p_increment
