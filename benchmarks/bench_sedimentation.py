@@ -47,6 +47,8 @@ import platform
 import time
 from pathlib import Path
 
+from bench_sedimentation_frame import run_table  # the generated cases' [run] table
+
 from crosscheck.compare.fluid_metrics import fluid_metrics
 from crosscheck.reference.fluid_data import wachs_sedimentation
 from crosscheck.scene.loader import load_case_text
@@ -132,13 +134,7 @@ description = "The Wachs disc held in a stream at its terminal speed, walls movi
 tags = ["fluid", "viscous"]
 dimension = 2
 
-[run]
-duration = {duration}
-dt = {step}
-sample_every = {step}
-engines = ["inhouse"]
-integrators = {{ inhouse = ["{integrator}"] }}
-
+{run_table(duration, step, integrator)}
 [fluid]
 domain = [{width}, {height}]
 resolution = [{int(round(width / dx))}, {int(round(height / dx))}]

@@ -110,6 +110,17 @@ output = {{ forces = true }}
 '''
 
 
+def run_table(duration: float, step: float, integrator: str) -> str:
+    """A generated case's ``[run]`` table: the in-house solver alone, sampled every step."""
+    return f'''[run]
+duration = {duration}
+dt = {step}
+sample_every = {step}
+engines = ["inhouse"]
+integrators = {{ inhouse = ["{integrator}"] }}
+'''
+
+
 def coupled_case(cells: int, step: float, height: float, start: float,
                  integrator: str = "maccormack", duration: float = 3.0,
                  density: float = RHO_S, speed: float = 0.0, gravity: bool = True) -> str:
@@ -123,13 +134,7 @@ description = "A disc released from rest on the axis of a closed channel 8 d wid
 tags = ["fluid", "coupling", "viscous", "sedimentation"]
 dimension = 2
 
-[run]
-duration = {duration}
-dt = {step}
-sample_every = {step}
-engines = ["inhouse"]
-integrators = {{ inhouse = ["{integrator}"] }}
-
+{run_table(duration, step, integrator)}
 {effects}
 [[bodies]]
 name = "disc"
