@@ -400,9 +400,9 @@ class Coupling:
         fluid's momentum balance gives it. Measured on a disc held in a Re ~ 14 stream at 4
         cells per diameter, the body's force against the fluid's momentum balance around it:
         `central` +2.26 % without this, -0.22 % with it; `maccormack` +2.30 / -0.39 %;
-        `semi_lagrangian` -7.95 / -1.54 % (docs/fluid.md, "The convective exchange"). The
-        moment is left out: the scheme does not conserve angular momentum in the band's
-        interior either, so the same balance would not isolate the wall's. ``u_old``,
+        `semi_lagrangian` -7.95 / -1.54 % (docs/fluid.md, "The convective exchange after a
+        trace"). The moment is left out: the scheme does not conserve angular momentum in the
+        band's interior either, so the same balance would not isolate the wall's. ``u_old``,
         ``v_old``: the field at the start of the step (on ``previous``, the last step's
         boundary); ``u_new``, ``v_new``: after the convection, the slivers kept."""
         g, bnd, old = self.geometry, self.boundary, self.previous

@@ -142,7 +142,9 @@ class FluidState:
 
         self.has_surface = spec.has_surface
         # the pressure matrix changes every step with a free surface or a moving body; without
-        # them it is built once, and a large one is solved by multigrid (sim/fluid/amg.py)
+        # them it is built once, and a large one is solved by multigrid (sim/fluid/amg.py); with
+        # a moving body and no free surface, by the static domain's multigrid and an exact solve
+        # of the body's window
         self.amg = None
         self.amg_min = AMG_MIN_UNKNOWNS if spec.pressure_solver == "auto" else 0
         if spec.pressure_solver != "mic0" and not self.has_surface:
