@@ -109,8 +109,8 @@ def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
       wall took drag off); 1.914 at R / dx = 4 (15.3 %), 1.828 at 6.4 (11.3 %): converging
       from above at about second order; what stays is mostly the closed box (in a box 10
       diameters wide C_D is 10-11 % higher again; linear in the blockage, 2 C_D(0.05) -
-      C_D(0.10) = 1.641 at 6.4, 2.0 % above the band), the 5 ms step (halved: C_D +0.4 %,
-      before the remedies) and the unfinished approach (benchmarks/results/settling_disc.md,
+      C_D(0.10) = 1.641 at 6.4, 2.0 % above the band), the 5 ms step (halved at R / dx = 4:
+      C_D -0.5 %) and the unfinished approach (benchmarks/results/settling_disc.md,
       settling_disc_dt.md). The limit is the case grid's measured error with a margin, 32 %.
     * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.45 %
       (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
