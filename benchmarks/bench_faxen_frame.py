@@ -33,10 +33,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_sedimentation_frame import record_held  # a held body with the fluid's balance
 
 from crosscheck.reference.fluid_data import faxen_channel_lambda
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -177,12 +177,7 @@ def held_run(cells_per_radius: int, step: float) -> dict:
     0.8 % of the stream's speed and moves by about 0.02 of a cell at 4 cells per radius)."""
     scene = load_case_text(held_case(cells_per_radius, step), "faxen_held.toml")
     fixed = load_case_text(frame_case(cells_per_radius, step), "faxen_frame.toml").fluid
-    run = FluidRun(scene, "semi_lagrangian")
-    st = run.st
-    balance = balance_after_each_step(st, fixed)
-    t0 = time.perf_counter()
-    rec = run.record()
-    wall = time.perf_counter() - t0
+    rec, balance, wall = record_held(FluidRun(scene, "semi_lagrangian"), fixed)
     t = np.asarray(rec.t)
     last = t > t[-1] - 0.2
     relative = SPEED - np.asarray(rec.series["body_vy.disc"])

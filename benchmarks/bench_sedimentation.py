@@ -47,12 +47,12 @@ import platform
 import time
 from pathlib import Path
 
-from bench_sedimentation_frame import run_table  # the generated cases' [run] table
+import numpy as np
+from bench_sedimentation_frame import record_held, run_table  # shared with the frame benchmark
 
 from crosscheck.compare.fluid_metrics import fluid_metrics
 from crosscheck.reference.fluid_data import wachs_sedimentation
 from crosscheck.scene.loader import load_case_text
-from crosscheck.sim.fluid.forces import balance_after_each_step
 from crosscheck.sim.fluid.run import FluidRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -155,20 +155,14 @@ def held_run(cells: int, step: float, integrator: str = "maccormack",
     measures). The wake sheds: the streamwise forces are means over several periods."""
     places = load_case_text(held_text(cells, step, integrator, duration, False),
                             "frame.toml").fluid
-    run = FluidRun(load_case_text(held_text(cells, step, integrator, duration, True),
-                                  "held.toml"), integrator)
-    balance = balance_after_each_step(run.st, places)
-    t0 = time.perf_counter()
-    rec = run.record()
-    wall = time.perf_counter() - t0
-    t = [float(x) for x in rec.t]
+    rec, balance, wall = record_held(
+        FluidRun(load_case_text(held_text(cells, step, integrator, duration, True), "held.toml"),
+                 integrator), places)
+    t = np.asarray(rec.t)
     start = t[-1] - duration / 3.0
-    force = rec.series["body_force_y.disc"]
-    body = sum(f for x, f in zip(t, force, strict=True) if x > start)
-    body /= sum(1 for x in t if x > start)
-    window = [f["disc"][1] for x, f in balance if x > start]
-    fluid = sum(window) / len(window)
-    drift = max(abs(v) for v in rec.series["body_vy.disc"]) / HELD_SPEED
+    body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[t > start]))
+    fluid = float(np.mean([f["disc"][1] for x, f in balance if x > start]))
+    drift = float(np.max(np.abs(np.asarray(rec.series["body_vy.disc"])))) / HELD_SPEED
     return {"run": f"{cells}:{step:g}:{integrator}", "cells_per_diameter": cells, "step": step,
             "integrator": integrator, "duration": duration, "body_force": body,
             "fluid_balance": fluid, "third_law_gap": body / fluid - 1.0,

@@ -223,6 +223,16 @@ def driven_run(cells: int, step: float, speed: float = DRIVEN_SPEED,
             "failure": rec.failure, "wall_s": wall}
 
 
+def record_held(run: FluidRun, places) -> tuple:
+    """Record ``run`` (a coupled body held in a stream) with the fluid's momentum balance
+    around ``places`` (a ``FluidSpec`` naming the body's place as an obstacle) measured after
+    each step: ``(record, [(time, forces by name)], wall seconds of the record)``."""
+    balance = balance_after_each_step(run.st, places)
+    t0 = time.perf_counter()
+    rec = run.record()
+    return rec, balance, time.perf_counter() - t0
+
+
 def held_run(cells: int, step: float, integrator: str = "central",
              speed: float = DRIVEN_SPEED, duration: float = 1.2) -> dict:
     """The frame's scene with the disc a coupled body at rest (``DRIVEN_DENSITY``, no gravity;
@@ -246,12 +256,8 @@ density = {DRIVEN_DENSITY}
 position = [{WIDTH / 2}, 0.02]
 """)
     fixed = load_case_text(fixed_text, "frame.toml").fluid
-    run = FluidRun(load_case_text(text, "held.toml"), integrator)
-    st = run.st
-    balance = balance_after_each_step(st, fixed)
-    t0 = time.perf_counter()
-    rec = run.record()
-    wall = time.perf_counter() - t0
+    rec, balance, wall = record_held(FluidRun(load_case_text(text, "held.toml"), integrator),
+                                     fixed)
     t = np.asarray(rec.t)
     last = t > t[-1] - 0.3
     body = float(np.mean(np.asarray(rec.series["body_force_y.disc"])[last]))

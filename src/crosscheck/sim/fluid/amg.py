@@ -152,8 +152,9 @@ class CoupledAMG:
         return self.static.setups
 
     def _static_system(self, phi, static) -> tuple:
-        """The static domain's compressed system (the body's cells as fluid), built when
-        ``phi`` changes (never, in a flow with no free surface)."""
+        """The static domain's compressed system (the body's cells as fluid) and its
+        hierarchy, built when ``phi`` changes (never, in a flow with no free surface; checking
+        the system's nine arrays every step instead took 0.22 ms of a 68 ms step at 256^2)."""
         if self._phi is None or not np.array_equal(phi, self._phi):
             from crosscheck.sim.fluid.pressure import build_system
 
@@ -163,6 +164,7 @@ class CoupledAMG:
             if out[-1] == 0:
                 diag[0] += 1.0          # enclosed: as the coupled system pins its null space
             self._system = (out[0], (diag, *out[2:10]))
+            self.static._prepare(self._system[1])
             self._phi = phi.copy()
         return self._system
 
@@ -177,7 +179,6 @@ class CoupledAMG:
 
         n = b.shape[0]
         sindex, ssys = self._static_system(phi, static)
-        self.static._prepare(ssys)
         ns = ssys[0].shape[0]
         # coupled unknown -> static unknown (every coupled unknown is one of the static domain)
         cells = index >= 0

@@ -420,7 +420,7 @@ class Coupling:
             before = np.sum(m * ((1.0 - fo) * qo[sl] + fo * sol_o[sl]))
             after = np.sum(m * ((1.0 - fn) * qn[sl] + fn * sol_n[sl]))
             moved[comp] = (after - before) + dt * float(np.sum(m * flux[sl]))
-        made = self.rho * self.dx * self.dx * moved     # momentum made in the window
+        made = self.rho * self.dx * self.dx * moved     # momentum made in the band
         self.convective_change = np.array([-made[0] / self.body.mass,
                                            -made[1] / self.body.mass, 0.0])
 

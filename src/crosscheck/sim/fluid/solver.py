@@ -512,7 +512,8 @@ class FluidState:
     def _convection_all(self, up: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The central convective term on the fluid's faces and on those inside the coupled
         body (from the body's velocity at its samples, as ``up``, ``vp`` have it): summed over
-        the body's window it telescopes to the momentum flux across the window's edge."""
+        any set of faces (the band ``Coupling.convective_exchange`` balances) it telescopes to
+        the momentum flux across the set's edge."""
         bnd = self.boundary
         us = np.where(bnd.u_dist < 0.0, FLUID, self.ustate).astype(self.ustate.dtype)
         vs = np.where(bnd.v_dist < 0.0, FLUID, self.vstate).astype(self.vstate.dtype)
