@@ -81,12 +81,15 @@ QUANTITIES = {"2d1": ("drag_coefficient", "lift_coefficient", "pressure_differen
 
 
 def scene_for(case: str, cells: int | None, duration: float | None, offset: float = 0.0,
-              rows: int | None = None, length: float | None = None):
+              rows: int | None = None, length: float | None = None, cfl: float | None = None,
+              force_window: tuple[float, float] | None = None):
     """The DFG scene at ``cells`` cells across the cylinder (a multiple of 10: the case's grid
     refined), or on ``rows`` rows across the channel (any number: the published geometry, the
     channel's length rounded to whole cells); ``offset``: the cylinder moved downstream by that
     many cells (another scene: its distance from the inflow changes); ``length``: the channel
-    cut to that length (m, rounded to whole cells; the outflow nearer the cylinder)."""
+    cut to that length (m, rounded to whole cells; the outflow nearer the cylinder); ``cfl``
+    and ``force_window`` replace the case's CFL number and the force's weighting ring (checks
+    of the step and of the measurement)."""
     text = CASE.read_text()
     if case == "2d2":
         text = (text.replace('name = "fluid-dfg-2d1"', 'name = "fluid-dfg-2d2"')
@@ -116,6 +119,12 @@ def scene_for(case: str, cells: int | None, duration: float | None, offset: floa
         nx = round(length / fluid.dx)
         fluid = dataclasses.replace(fluid, resolution=(nx, fluid.resolution[1]),
                                     domain=(nx * fluid.dx, fluid.domain[1]))
+    if cfl is not None:
+        fluid = dataclasses.replace(fluid, cfl=cfl, cfl_limit=max(fluid.cfl_limit, 2.0 * cfl))
+    if force_window is not None:
+        out = fluid.output
+        fluid = dataclasses.replace(fluid, output=dataclasses.replace(
+            out, forces=dataclasses.replace(out.forces, window=tuple(force_window))))
     if offset:
         # past the loader, which holds the case to the benchmark's geometry exactly
         ob = fluid.obstacles[0]
@@ -182,8 +191,9 @@ def aitken(values: list[float]) -> float | None:
 
 def run_one(case: str, cells: int | None, duration: float | None, integrator: str,
             offset: float = 0.0, rows: int | None = None, length: float | None = None,
-            start: Path | None = None, save: Path | None = None) -> dict:
-    scene = scene_for(case, cells, duration, offset, rows, length)
+            start: Path | None = None, save: Path | None = None, cfl: float | None = None,
+            force_window: tuple[float, float] | None = None) -> dict:
+    scene = scene_for(case, cells, duration, offset, rows, length, cfl, force_window)
     dx = scene.fluid.dx
     d = 2.0 * float(scene.fluid.obstacles[0].shape.radius)
     cells = cells if rows is None else round(d / dx, 4)
@@ -211,6 +221,10 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
     }
     if start is not None:
         entry["started_from"] = _started_from(start)
+    if cfl is not None:
+        entry["cfl"] = cfl
+    if force_window is not None:
+        entry["force_window"] = list(force_window)
     if case == "2d2" and rec.failure is None:
         cd, cl = force_coefficients(scene, rec)
         entry["period_maxima"] = period_maxima(np.asarray(rec.t), cd, cl)
@@ -445,7 +459,8 @@ def write_markdown(data: dict, path: Path) -> None:
 
 
 def _restarted_or_short(r: dict) -> bool:
-    return "started_from" in r or abs(_length(r) - PUBLISHED_LENGTH) > r["dx"]
+    return ("started_from" in r or abs(_length(r) - PUBLISHED_LENGTH) > r["dx"]
+            or "cfl" in r or "force_window" in r)
 
 
 def _length(r: dict) -> float:
@@ -478,18 +493,32 @@ def _restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[str]:
         last_l, last_d = pm[-1][1], pm[-1][2]
         change = pm[-1][1] - pm[-2][1] if len(pm) > 1 else math.nan
         lim_l, lim_d = r.get("lift_max_aitken"), r.get("drag_max_aitken")
-        src = r.get("started_from")
-        frm = "rest" if src is None else f"{src['grid'][0]} x {src['grid'][1]}"
         own = full.get(r["cells_per_diameter"])
         lines.append(
             f"| {r['cells_per_diameter']} | {_length(r):.3g} | {r['grid'][0]} x {r['grid'][1]} "
-            f"| {frm} | {r['duration']:g} | {len(pm)} | {last_l:.5f} | {change:+.1e} | "
+            f"| {_origin(r)} | {r['duration']:g} | {len(pm)} | {last_l:.5f} | {change:+.1e} | "
             + ("-" if lim_l is None else f"{lim_l:.5f}") + f" | {last_d:.5f} | "
             + ("-" if lim_d is None else f"{lim_d:.5f}")
-            + f" | {r['metrics'].get('strouhal_number', math.nan):.4f} | "
+            + f" | {_fmt(r['metrics'].get('strouhal_number'), '.4f')} | "
             + ("-" if own is None else f"{own['metrics']['lift_coefficient_max']:.5f}")
             + f" | {r['ms_per_step']:.0f} | {r['wall_s']:.0f} |")
     return lines + [""]
+
+
+def _fmt(v: float | None, spec: str) -> str:
+    """A number, or "-" where none was measured (a run too short for three lift periods)."""
+    return "-" if v is None or not math.isfinite(v) else format(v, spec)
+
+
+def _origin(r: dict) -> str:
+    """Where a restarted run started (the saved grid, or rest) and what else it changed."""
+    src = r.get("started_from")
+    out = "rest" if src is None else f"{src['grid'][0]} x {src['grid'][1]}"
+    if "cfl" in r:
+        out += f", CFL {r['cfl']:g}"
+    if "force_window" in r:
+        out += ", force ring {:g}-{:g} m".format(*r["force_window"])
+    return out
 
 
 def _steady_restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[str]:
@@ -510,8 +539,6 @@ def _steady_restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[s
              + " | drift c_D / c_L | case's run | ms/step | wall s |", "|---" * (len(qs) + 9) + "|"]
     for r in rs:
         m = r["metrics"]
-        src = r.get("started_from")
-        frm = "rest" if src is None else f"{src['grid'][0]} x {src['grid'][1]}"
         own = full.get(r["cells_per_diameter"])
         vals = []
         for q in qs:
@@ -520,7 +547,7 @@ def _steady_restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[s
             vals.append("-" if v is None else f"{v:.5g}{' (in)' if inside else ''}")
         lines.append(
             f"| {r['cells_per_diameter']} | {_length(r):.3g} | {r['grid'][0]} x {r['grid'][1]} "
-            f"| {frm} | {r['duration']:g} | " + " | ".join(vals)
+            f"| {_origin(r)} | {r['duration']:g} | " + " | ".join(vals)
             + f" | {m.get('drag_coefficient_drift', math.nan):.1e} / "
             f"{m.get('lift_coefficient_drift', math.nan):.1e} | "
             + ("-" if own is None else " / ".join(f"{own['metrics'][q]:.5g}" for q in qs))
@@ -531,7 +558,8 @@ def _steady_restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[s
 def _key(r: dict) -> tuple:
     src = r.get("started_from")
     return (r["case"], r["grid"][1], r.get("offset", 0.0), round(_length(r), 6),
-            None if src is None else tuple(src["grid"]))
+            None if src is None else tuple(src["grid"]), r.get("cfl"),
+            tuple(r.get("force_window") or ()))
 
 
 def main() -> None:
@@ -556,6 +584,11 @@ def main() -> None:
                          "interpolated onto the grid, instead of from rest")
     ap.add_argument("--save-state", type=Path, default=None,
                     help="save the run's final velocity and pressure here (.npz)")
+    ap.add_argument("--cfl", type=float, default=None,
+                    help="the CFL number instead of the case's 0.5 (a check of the step)")
+    ap.add_argument("--force-window", type=float, nargs=2, default=None, metavar=("D0", "D1"),
+                    help="the force's weighting ring, m from the surface, instead of the "
+                         "default 0.025-0.1 (a check of the measurement)")
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--report", action="store_true",
                     help="only rewrite dfg.md from dfg.json (no runs)")
@@ -580,6 +613,12 @@ def main() -> None:
     if args.length is not None and not 0.5 <= args.length <= PUBLISHED_LENGTH:
         raise SystemExit(f"--length {args.length}: expected 0.5 to {PUBLISHED_LENGTH} m (the "
                          "cylinder's wake needs the channel to reach 3 D behind it)")
+    if args.cfl is not None and not 0.0 < args.cfl <= 1.0:
+        raise SystemExit(f"--cfl {args.cfl}: expected a number in (0, 1] (the central scheme's "
+                         "Adams-Bashforth 2 is run at 0.5)")
+    if args.force_window is not None and not 0.0 <= args.force_window[0] < args.force_window[1]:
+        raise SystemExit(f"--force-window {args.force_window}: expected D0 D1 with "
+                         "0 <= D0 < D1 (m from the cylinder's surface)")
     if args.save_state is not None and len(grids) > 1:
         raise SystemExit("--save-state: one grid at a time (the file holds one state)")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -591,7 +630,8 @@ def main() -> None:
         return
     for c, rows in grids:
         entry = run_one(args.case, c, args.duration, args.integrator, args.offset, rows,
-                        args.length, args.start_from, args.save_state)
+                        args.length, args.start_from, args.save_state, args.cfl,
+                        tuple(args.force_window) if args.force_window else None)
         # read again: another study may have added its runs meanwhile
         data = json.loads(jpath.read_text()) if jpath.exists() else {"runs": []}
         data["machine"] = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cpus"
