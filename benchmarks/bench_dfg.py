@@ -469,13 +469,19 @@ def _length(r: dict) -> float:
     return r.get("length") or PUBLISHED_LENGTH
 
 
+def _restarted_runs(all_runs: list[dict], case: str) -> list[dict]:
+    """The case's runs restarted, shortened or otherwise varied (not moved), by grid, the full
+    channel first."""
+    return sorted((r for r in all_runs if r["case"] == case and _restarted_or_short(r)
+                   and not r.get("offset", 0.0)),
+                  key=lambda r: (r["cells_per_diameter"], -_length(r)))
+
+
 def _restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[str]:
     """The 2D-2 runs restarted from a coarser state or in a shortened channel: the maxima over
     the second half of the run, the last period's maxima and their Aitken limits, beside the
     case's run on the same grid where there is one."""
-    rs = sorted((r for r in all_runs if r["case"] == "2d2" and _restarted_or_short(r)
-                 and not r.get("offset", 0.0)),
-                key=lambda r: (r["cells_per_diameter"], -_length(r)))
+    rs = _restarted_runs(all_runs, "2d2")
     if not rs:
         return []
     full = {r["cells_per_diameter"]: r for r in case_runs}
@@ -524,9 +530,7 @@ def _origin(r: dict) -> str:
 def _steady_restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[str]:
     """The 2D-1 runs restarted from a coarser state or in a shortened channel, beside the case's
     run on the same grid where there is one (from rest, 12 s, full channel)."""
-    rs = sorted((r for r in all_runs if r["case"] == "2d1" and _restarted_or_short(r)
-                 and not r.get("offset", 0.0)),
-                key=lambda r: (r["cells_per_diameter"], -_length(r)))
+    rs = _restarted_runs(all_runs, "2d1")
     if not rs:
         return []
     full = {r["cells_per_diameter"]: r for r in case_runs}
