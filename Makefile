@@ -35,12 +35,9 @@ browser:
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium >/dev/null; } || \
 	  echo "make: could not install chromium: the browser test will say so"
 
-# --durations: CI's log lists the slowest tests (the run is held to 15 minutes on 2 cores).
-# --dist worksteal: a worker that runs out of tests takes pending ones from the other's queue, so
-# the suite does not end on one worker while the other idles (a test's first call in a worker
-# pays numba's compile, 10-100 s, and those calls are not spread evenly by count)
+# --durations: CI's log lists the slowest tests (the run is held to 15 minutes on 2 cores)
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -n $(WORKERS) --dist worksteal -q --durations=30
+	$(BIN)/python -m pytest -n $(WORKERS) -q --durations=30
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rigid.py
