@@ -3,7 +3,8 @@ convergence of 2D-1 (steady, Re = 20) and the periodic 2D-2 (Re = 100).
 
     .venv/bin/python benchmarks/bench_dfg.py [--case 2d1|2d2] [--cells 10 20 30 40]
         [--rows 41 43 ...] [--duration S] [--integrator central] [--offset F] [--out DIR]
-        [--length L] [--start-from STATE.npz] [--save-state STATE.npz]
+        [--length L] [--start-from STATE.npz] [--save-state STATE.npz] [--cfl C]
+        [--force-window D0 D1]
 
 2D-1 runs ``cases/fluid/dfg_2d1.toml`` with the grid refined to ``--cells`` cells across the
 cylinder (the case file has 10), to ``--duration`` (default the case's 12 s, 24 convective
@@ -31,7 +32,7 @@ depend on it (whole-cell moves, which cut the cylinder as the case's grid does, 
 drag -1.1 % per centimetre downstream at 10 and at 20 cells across, the 2D-2 lift maximum
 -6.5 % per centimetre at 10). Listed apart, under "The cylinder moved".
 
-``--start-from`` and ``--save-state`` (2D-2) make the finer grids affordable. A run at 80 cells
+``--start-from`` and ``--save-state`` make the finer grids affordable. A run at 80 cells
 across from rest would take some 10 hours here (its 10 s, of which the shedding needs about 5 to
 settle); started instead from a coarser run's final state (``--save-state``), interpolated onto
 the finer grid, it needs about 3 s. The periodic state is an attractor: the restarted run's
@@ -146,8 +147,26 @@ def save_state(st, path: Path) -> None:
     np.savez(path, u=st.u, v=st.v, p=st.p, dx=st.dx)
 
 
-def start_from(st, path: Path) -> None:
-    """Set the fluid's velocity and pressure to a saved state (``--save-state``) interpolated
+def read_state(path: Path) -> dict:
+    """A state written by ``save_state``, checked: ``u``, ``v``, ``p`` on one MAC grid and a
+    positive ``dx``; ValueError naming the file and what is wrong otherwise."""
+    try:
+        with np.load(path) as z:
+            state = {k: np.asarray(z[k]) for k in ("u", "v", "p", "dx")}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ValueError(f"{path}: not a saved state (expected an .npz with u, v, p and dx, "
+                         f"as --save-state writes): {exc}") from exc
+    nx, ny = state["p"].shape if state["p"].ndim == 2 else (0, 0)
+    if (nx < 2 or ny < 2 or state["u"].shape != (nx + 1, ny) or state["v"].shape != (nx, ny + 1)
+            or not float(state["dx"]) > 0.0):
+        raise ValueError(f"{path}: expected p (nx, ny), u (nx + 1, ny), v (nx, ny + 1) and dx > 0; "
+                         f"got p {state['p'].shape}, u {state['u'].shape}, v {state['v'].shape}, "
+                         f"dx {float(state['dx']):g}")
+    return state
+
+
+def start_from(st, state: dict) -> None:
+    """Set the fluid's velocity and pressure to a saved state (``read_state``) interpolated
     bilinearly onto this grid; the walls, the inflow and the cylinder's faces are imposed again,
     and the first projection makes the field divergence-free on this grid. Outside the saved
     grid (none here: the saved channel is as long or longer) the nearest values extend."""
@@ -155,12 +174,11 @@ def start_from(st, path: Path) -> None:
 
     from crosscheck.sim.fluid.boundary import impose
 
-    z = np.load(path)
-    saved = _face_grids(*z["p"].shape, float(z["dx"]))
+    saved = _face_grids(*state["p"].shape, float(state["dx"]))
     here = _face_grids(st.nx, st.ny, st.dx)
     for name in ("u", "v", "p"):
         xs, ys = saved[name]
-        at = RegularGridInterpolator((xs, ys), z[name], bounds_error=False, fill_value=None)
+        at = RegularGridInterpolator((xs, ys), state[name])
         x, y = np.meshgrid(*here[name], indexing="ij")
         points = np.stack([np.clip(x, xs[0], xs[-1]), np.clip(y, ys[0], ys[-1])], -1)
         setattr(st, name, np.ascontiguousarray(at(points)))
@@ -198,13 +216,18 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
     d = 2.0 * float(scene.fluid.obstacles[0].shape.radius)
     cells = cells if rows is None else round(d / dx, 4)
     run = FluidRun(scene, integrator)
-    if start is not None:
-        start_from(run.st, start)
+    state = None if start is None else read_state(start)
+    if state is not None:
+        start_from(run.st, state)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0
+    saved = None
     if save is not None:
-        save_state(run.st, save)
+        try:
+            save_state(run.st, save)
+        except OSError as exc:     # the run is kept in dfg.json all the same
+            saved = f"not saved: {exc}"
     m = rec.meta
     metrics = fluid_metrics(scene, rec) if rec.failure is None else {}
     entry = {
@@ -219,8 +242,13 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
         "recorded": time.strftime("%Y-%m-%d %H:%M:%S"),
         "load_average": os.getloadavg()[0],
     }
-    if start is not None:
-        entry["started_from"] = _started_from(start)
+    if state is not None:
+        nx, ny = state["p"].shape
+        entry["started_from"] = {"file": start.name, "grid": [int(nx), int(ny)],
+                                 "dx": float(state["dx"])}
+    if saved is not None:
+        entry["state"] = saved
+        print(f"--save-state {save}: {saved}", flush=True)
     if cfl is not None:
         entry["cfl"] = cfl
     if force_window is not None:
@@ -231,13 +259,6 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
         entry["lift_max_aitken"] = aitken([p[1] for p in entry["period_maxima"]])
         entry["drag_max_aitken"] = aitken([p[2] for p in entry["period_maxima"]])
     return entry
-
-
-def _started_from(path: Path) -> dict:
-    """What a restarted run started from: the saved state's grid and cell size."""
-    z = np.load(path)
-    nx, ny = z["p"].shape
-    return {"file": path.name, "grid": [int(nx), int(ny)], "dx": float(z["dx"])}
 
 
 def observed_orders(runs: list[dict], case: str) -> list[dict]:
@@ -459,6 +480,8 @@ def write_markdown(data: dict, path: Path) -> None:
 
 
 def _restarted_or_short(r: dict) -> bool:
+    """A run off the case's own protocol: restarted, in a shortened channel, or with another
+    step or force ring."""
     return ("started_from" in r or abs(_length(r) - PUBLISHED_LENGTH) > r["dx"]
             or "cfl" in r or "force_window" in r)
 
@@ -614,6 +637,14 @@ def main() -> None:
         if not args.start_from.is_file():
             raise SystemExit(f"--start-from {args.start_from}: no such file (write one with "
                              "--save-state)")
+        try:
+            read_state(args.start_from)
+        except ValueError as exc:
+            raise SystemExit(f"--start-from: {exc}") from exc
+    if args.save_state is not None and not args.save_state.parent.is_dir():
+        # checked before the run: a missing directory would lose an hour's run at its end
+        raise SystemExit(f"--save-state {args.save_state}: no directory "
+                         f"{args.save_state.parent} to write it in")
     if args.length is not None and not 0.5 <= args.length <= PUBLISHED_LENGTH:
         raise SystemExit(f"--length {args.length}: expected 0.5 to {PUBLISHED_LENGTH} m (the "
                          "cylinder's wake needs the channel to reach 3 D behind it)")

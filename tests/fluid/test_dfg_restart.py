@@ -46,7 +46,7 @@ def test_a_run_restarted_from_its_own_saved_state_continues_it(tmp_path):
 
     rest = bench_dfg.scene_for("2d2", 10, 0.1)
     restarted = FluidRun(rest, "central")
-    bench_dfg.start_from(restarted.st, state)
+    bench_dfg.start_from(restarted.st, bench_dfg.read_state(state))
     t2, cd2, cl2 = _forces(restarted, rest)
 
     assert t2.shape[0] == later.sum()
