@@ -221,6 +221,11 @@ class Coupling:
         # exchange's velocity change, put on the body with gravity (predict)
         self.previous: SolidBoundary | None = None
         self.convective_change = np.zeros(3)
+        # steps whose convective exchange was applied, and steps of a viscous coupled run that
+        # went without it because the free surface crossed the body's window (window_is_wet):
+        # the run's metadata reports both, so a run that lost the exchange says so
+        self.convective_steps = 0
+        self.surface_skips = 0
 
     # -- geometry ----------------------------------------------------------------------------
     def build(self) -> SolidBoundary:
@@ -421,6 +426,7 @@ class Coupling:
             after = np.sum(m * ((1.0 - fn) * qn[sl] + fn * sol_n[sl]))
             moved[comp] = (after - before) + dt * float(np.sum(m * flux[sl]))
         made = self.rho * self.dx * self.dx * moved     # momentum made in the band
+        self.convective_steps += 1
         self.convective_change = np.array([-made[0] / self.body.mass,
                                            -made[1] / self.body.mass, 0.0])
 

@@ -267,7 +267,9 @@ class FluidRun:
                             "com_body": b.com_body.tolist(), "mass_per": "metre of depth"}],
                 "coupling": {"method": "variational pressure solve with the body's velocity "
                                        "as unknowns (Batty, Bertails and Bridson 2007)",
-                             "viscous_exchange_number_max": c.viscous_number}}
+                             "viscous_exchange_number_max": c.viscous_number,
+                             "convective_exchange_steps": c.convective_steps,
+                             "convective_exchange_skipped_at_surface": c.surface_skips}}
 
     def _viscous_warning(self) -> str | None:
         c = self.st.coupling
