@@ -47,6 +47,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=lambda item: _place(item.nodeid))   # stable: each file keeps its order
 
 
+@pytest.hookimpl(optionalhook=True)   # xdist's hook: without xdist (-p no:xdist) it is unknown
 def pytest_xdist_make_scheduler(config, log):
     if config.getvalue("dist") != "load":
         return None   # an explicit other mode (loadfile, worksteal, ...) is left to xdist
