@@ -395,29 +395,37 @@ def test_water_entry_keeps_the_water(fluid_case):
 
 def test_a_viscous_floating_disc_heaves_as_theory_says_without_the_convective_exchange(
         fluid_case):
-    """The half-density disc of ``test_floating_disc`` in a fluid of kinematic viscosity 1e-3
-    m^2/s: the viscous coupled step (the incremental projection, the implicit viscous step and
-    its exchange with the body) with a free surface, which the inviscid floating cases never
-    take. The surface always crosses the floating body's window, so the convective exchange is
-    off on every step (``window_is_wet``: air faces carry extrapolated velocities, not momentum)
-    and the run's metadata says so.
+    """The half-density disc of ``test_floating_disc`` in water (kinematic viscosity 1e-6
+    m^2/s, no-slip): the viscous coupled step (the incremental projection, the implicit viscous
+    step and its exchange with the body through the no-slip wall) with a free surface, which the
+    inviscid floating cases never take. The surface always crosses the floating body's window,
+    so the convective exchange is off on every step (``window_is_wet``: air faces carry
+    extrapolated velocities, not momentum), and the run's metadata says so.
 
-    Measured (2026-11-30, dx = 1/64, 3 s): draft error 0.68 %, volume 3.9e-5, energy growth
-    1.3 %, heave period 0.6345 s against Ursell's 0.6352 (-0.1 %; inviscid 0.6211, -2.2 %),
-    damping ratio 0.201 against 0.174 inviscid (and 0.182 at nu = 1e-4): viscosity adds
-    damping, it never removes it. With the exchange forced on through the surface the air faces
-    gave the disc -0.033 N s over the run and the damping ratio read 0.208 (0.192 against 0.182
-    at nu = 1e-4): small here, where the heave is slow, but momentum no balance accounts for.
-    Bounds as ``test_floating_disc``'s (1 %, 1e-3, 5 %, the period 4 %), and the damping above
-    the inviscid run's by at least 5 % (measured 15.6 %)."""
+    Measured (2026-11-30, dx = 1/64, 3 s): draft error 0.50 %, volume 2e-5, energy growth
+    2.6 %, heave period 0.6141 s (Ursell 0.6352: -3.3 %; inviscid 0.6211, -1.1 % from it),
+    damping ratio 0.1794 against 0.1735 inviscid (+3.4 %). A Stokes layer on the wetted half
+    under the slip of the infinite-frequency flow (2 V cos theta) dissipates as a damper 2 pi R
+    rho sqrt(nu omega / 2), which adds 0.0035 to the damping ratio (over 2 (M + A) omega). More
+    viscous, the damping ratio grows about as sqrt(nu): 0.187 / 0.228 / 0.420 at 1e-5 / 1e-4 /
+    1e-3, its rise above the inviscid value 1.2-2.2 times that estimate's (1.7 here)
+    (the estimate leaves out the waterline, where the no-slip wall drags the surface; at 1e-3
+    the draft error is 2.1 %). With the exchange forced on through the surface (a throwaway run
+    at 1e-3) the air faces gave the disc -0.032 N s over the run (its weight's impulse is 296 N
+    s). Bounds: ``test_floating_disc``'s (draft 1 %, water 1e-3, energy 5 %, period 4 % of
+    Ursell's), the period within 2 % of the inviscid run's and the damping ratio above it (by
+    at most 10 %)."""
     _, inviscid = _floating_disc(fluid_case, 500.0)
-    scene, rec = _floating_disc(fluid_case, 500.0, nu=1e-3)
+    scene, rec = _floating_disc(fluid_case, 500.0, nu=1e-6)
     assert inviscid.failure is None and rec.failure is None
     coupling = rec.meta["coupling"]
     assert coupling["convective_exchange_steps"] == 0
     assert coupling["convective_exchange_skipped_at_surface"] == rec.meta["dt"]["steps"] > 0
+    assert coupling["viscous_exchange_number_max"] > 0.0      # the no-slip wall's exchange ran
     m = _floats_as_theory_says(scene, rec)
-    assert m["heave_damping"] > 1.05 * fluid_metrics(scene, inviscid)["heave_damping"]
+    m0 = fluid_metrics(scene, inviscid)
+    assert m["heave_period"] == pytest.approx(m0["heave_period"], rel=0.02)
+    assert m0["heave_damping"] < m["heave_damping"] < 1.1 * m0["heave_damping"]
 
 
 def _floats_as_theory_says(scene, rec) -> dict:
@@ -447,7 +455,9 @@ def _floating_disc(fluid_case, density, height=None, nu=0.0):
                                com=np.zeros(2))
     if height is not None:
         disc = dataclasses.replace(disc, position=np.array([disc.position[0], height]))
-    fluid = dataclasses.replace(scene.fluid, bodies=(disc,), kinematic_viscosity=nu)
+    # a viscous fluid with a body needs the no-slip wall (the case format refuses free slip)
+    fluid = dataclasses.replace(scene.fluid, bodies=(disc,), kinematic_viscosity=nu,
+                                no_slip=nu > 0.0)
     scene = dataclasses.replace(scene, fluid=fluid)
     key = (density, height, nu)   # the inviscid half-density run serves two tests
     if key not in _FLOATING:
