@@ -247,6 +247,14 @@ def test_bodies_in_a_fluid_case_refuse_bad_input():
     with pytest.raises(CaseError) as exc:
         _case(BOX % "0.25", TANK + "kinematic_viscosity = 1e-3\nno_slip = false")
     assert exc.value.field == "fluid.no_slip"
+    # the same spec built in code: the solver refuses it too (it would run with no viscous
+    # force on the body: no wall, no exchange)
+    import dataclasses
+
+    scene = _case(BOX % "0.25", TANK + "kinematic_viscosity = 1e-3")
+    free_slip = dataclasses.replace(scene.fluid, no_slip=False)
+    with pytest.raises(ValueError, match="no_slip"):
+        FluidState(free_slip, np.zeros(2), INTEGRATORS["semi_lagrangian"])
     with pytest.raises(CaseError) as exc:
         _case(BOX % "0.25", TANK, effects='gravity = [0.0, -9.81]\n[[effects.loads]]\n'
               'body = "box"\nforce = [1.0, 0.0]')

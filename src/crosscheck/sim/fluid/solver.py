@@ -119,6 +119,11 @@ class FluidState:
         if spec.bodies:
             from crosscheck.sim.fluid.coupling import Coupling
 
+            if spec.kinematic_viscosity > 0.0 and not spec.no_slip:
+                # the case loader refuses it too; a spec built in code must not run it silently
+                # (no wall, so no viscous exchange: the body would feel no viscous force)
+                raise ValueError("a viscous fluid with a body needs no_slip = true: the viscous "
+                                 "momentum is exchanged through the body's no-slip wall")
             self.coupling = Coupling(spec.bodies, self.static_boundary, self.nx, self.ny,
                                      self.dx, spec.density, self.gravity,
                                      spec.has_surface)
