@@ -16,6 +16,7 @@ must reproduce (it is the same minimisation with the body's velocity an unknown)
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -92,13 +93,12 @@ def moving_body_added_mass(spec: Any, body: Any, velocity: tuple[float, float],
                          "obstacles (solid walls, no free surface)")
     nx, ny = spec.resolution
     state = FluidState(spec, np.zeros(2), INTEGRATORS["central"])
-    shapes = [body]
-    shape_only = SolidBoundary.from_shapes(shapes, nx, ny, spec.dx, np.zeros(4, bool))
+    shape_only = SolidBoundary.from_shapes([body], nx, ny, spec.dx, np.zeros(4, bool))
     u_solid = np.where(shape_only.u_frac > 0.0, float(velocity[0]), 0.0)
     v_solid = np.where(shape_only.v_frac > 0.0, float(velocity[1]), 0.0)
     u_solid[[0, -1], :] = 0.0      # the domain's walls
     v_solid[:, [0, -1]] = 0.0
-    bnd = SolidBoundary.from_shapes(shapes, nx, ny, spec.dx, np.zeros(4, bool), u_solid, v_solid)
+    bnd = dataclasses.replace(shape_only, u_solid=u_solid, v_solid=v_solid)
     state.boundary = bnd
     state.classify()
     u, v = np.zeros(state.u.shape), np.zeros(state.v.shape)
