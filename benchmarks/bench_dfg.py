@@ -149,7 +149,8 @@ def save_state(st, path: Path) -> None:
 
 def read_state(path: Path) -> dict:
     """A state written by ``save_state``, checked: ``u``, ``v``, ``p`` on one MAC grid and a
-    positive ``dx``; ValueError naming the file and what is wrong otherwise."""
+    positive ``dx`` (and ``file``, its name, for the run's entry); ValueError naming the file and
+    what is wrong otherwise."""
     try:
         with np.load(path) as z:
             state = {k: np.asarray(z[k]) for k in ("u", "v", "p", "dx")}
@@ -162,6 +163,7 @@ def read_state(path: Path) -> dict:
         raise ValueError(f"{path}: expected p (nx, ny), u (nx + 1, ny), v (nx, ny + 1) and dx > 0; "
                          f"got p {state['p'].shape}, u {state['u'].shape}, v {state['v'].shape}, "
                          f"dx {float(state['dx']):g}")
+    state["file"] = path.name
     return state
 
 
@@ -209,16 +211,17 @@ def aitken(values: list[float]) -> float | None:
 
 def run_one(case: str, cells: int | None, duration: float | None, integrator: str,
             offset: float = 0.0, rows: int | None = None, length: float | None = None,
-            start: Path | None = None, save: Path | None = None, cfl: float | None = None,
+            start: dict | None = None, save: Path | None = None, cfl: float | None = None,
             force_window: tuple[float, float] | None = None) -> dict:
+    """One run; ``start``: a saved state (``read_state``, read once for every grid) to start
+    from instead of rest."""
     scene = scene_for(case, cells, duration, offset, rows, length, cfl, force_window)
     dx = scene.fluid.dx
     d = 2.0 * float(scene.fluid.obstacles[0].shape.radius)
     cells = cells if rows is None else round(d / dx, 4)
     run = FluidRun(scene, integrator)
-    state = None if start is None else read_state(start)
-    if state is not None:
-        start_from(run.st, state)
+    if start is not None:
+        start_from(run.st, start)
     t0 = time.perf_counter()
     rec = run.record()
     wall = time.perf_counter() - t0
@@ -242,10 +245,10 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
         "recorded": time.strftime("%Y-%m-%d %H:%M:%S"),
         "load_average": os.getloadavg()[0],
     }
-    if state is not None:
-        nx, ny = state["p"].shape
-        entry["started_from"] = {"file": start.name, "grid": [int(nx), int(ny)],
-                                 "dx": float(state["dx"])}
+    if start is not None:
+        nx, ny = start["p"].shape
+        entry["started_from"] = {"file": start["file"], "grid": [int(nx), int(ny)],
+                                 "dx": float(start["dx"])}
     if saved is not None:
         entry["state"] = saved
         print(f"--save-state {save}: {saved}", flush=True)
@@ -633,12 +636,13 @@ def main() -> None:
                 raise SystemExit(f"--cells {c}: the DFG grid needs a multiple of 10 cells across "
                                  "D (--rows for other grids)")
         grids = [(c, None) for c in cells]
+    start = None
     if args.start_from is not None:
         if not args.start_from.is_file():
             raise SystemExit(f"--start-from {args.start_from}: no such file (write one with "
                              "--save-state)")
         try:
-            read_state(args.start_from)
+            start = read_state(args.start_from)
         except ValueError as exc:
             raise SystemExit(f"--start-from: {exc}") from exc
     if args.save_state is not None and not args.save_state.parent.is_dir():
@@ -665,7 +669,7 @@ def main() -> None:
         return
     for c, rows in grids:
         entry = run_one(args.case, c, args.duration, args.integrator, args.offset, rows,
-                        args.length, args.start_from, args.save_state, args.cfl,
+                        args.length, start, args.save_state, args.cfl,
                         tuple(args.force_window) if args.force_window else None)
         # read again: another study may have added its runs meanwhile
         data = json.loads(jpath.read_text()) if jpath.exists() else {"runs": []}

@@ -6,6 +6,7 @@ refusals, and that only what a case declares runs."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 
 import numpy as np
@@ -249,8 +250,6 @@ def test_bodies_in_a_fluid_case_refuse_bad_input():
     assert exc.value.field == "fluid.no_slip"
     # the same spec built in code: the solver refuses it too (it would run with no viscous
     # force on the body: no wall, no exchange)
-    import dataclasses
-
     scene = _case(BOX % "0.25", TANK + "kinematic_viscosity = 1e-3")
     free_slip = dataclasses.replace(scene.fluid, no_slip=False)
     with pytest.raises(ValueError, match="no_slip"):
@@ -454,8 +453,6 @@ def _floating_disc(fluid_case, density, height=None, nu=0.0):
     """The floating-box case with its box replaced by a disc of radius 0.08 m and ``density``,
     released at the box's point or with its centre at ``height``, in a fluid of kinematic
     viscosity ``nu`` (the case's is inviscid)."""
-    import dataclasses
-
     scene = fluid_case("floating_box")
     disc = dataclasses.replace(scene.fluid.bodies[0], shape=Circle(0.08),
                                mass=density * math.pi * 0.08 ** 2,
@@ -619,8 +616,6 @@ def test_viscous_dissipation_of_a_shear_flow_is_exact():
 
 
 def _sedimentation(runs, dt=None):
-    import dataclasses
-
     scene, rec = runs("sedimentation_channel", "semi_lagrangian")
     if dt is None:
         return scene, rec

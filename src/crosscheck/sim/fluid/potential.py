@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from crosscheck.sim.fluid.boundary import impose
+from crosscheck.sim.fluid.boundary import SolidBoundary, impose
 from crosscheck.sim.fluid.pressure import project
 from crosscheck.sim.fluid.solver import INTEGRATORS, FluidState
 
@@ -81,18 +81,19 @@ def moving_body_added_mass(spec: Any, body: Any, velocity: tuple[float, float],
                            tolerance: float = 1e-12) -> float:
     """The discrete added mass (kg per metre of depth) of the placed shape ``body`` (a
     ``scene.shapes.Placed``) translating at ``velocity`` through the resting fluid of ``spec``
-    (a closed domain without free surface or obstacles): the fluid at rest, every face the body
-    covers or cuts given its velocity, one projection, and ``2 E / |velocity|^2`` with ``E`` the
-    fluid's kinetic energy, each face weighted by its open fraction as the projection weighs it.
-    The domain's walls stay at rest."""
-    from crosscheck.sim.fluid.boundary import SolidBoundary
-
+    (a closed domain without free surface or obstacles; its coupled bodies, if any, are left
+    out): the fluid at rest, every face the body covers or cuts given its velocity, one
+    projection, and ``2 E / |velocity|^2`` with ``E`` the fluid's kinetic energy, each face
+    weighted by its open fraction as the projection weighs it. The domain's walls stay at
+    rest."""
     if (spec.has_surface or spec.obstacles
             or any(kind != "solid" for kind in spec.walls.values())):
         raise ValueError("moving_body_added_mass needs a closed domain full of fluid, without "
                          "obstacles (solid walls, no free surface)")
+    if not np.any(np.asarray(velocity, float)):
+        raise ValueError("moving_body_added_mass needs a velocity other than zero")
     nx, ny = spec.resolution
-    state = FluidState(spec, np.zeros(2), INTEGRATORS["central"])
+    state = FluidState(dataclasses.replace(spec, bodies=()), np.zeros(2), INTEGRATORS["central"])
     shape_only = SolidBoundary.from_shapes([body], nx, ny, spec.dx, np.zeros(4, bool))
     u_solid = np.where(shape_only.u_frac > 0.0, float(velocity[0]), 0.0)
     v_solid = np.where(shape_only.v_frac > 0.0, float(velocity[1]), 0.0)
