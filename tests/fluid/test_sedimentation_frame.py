@@ -7,6 +7,7 @@ case format's moving side walls that the frame needs (``fluid.lid`` as an array)
 
 from __future__ import annotations
 
+import functools
 import sys
 from pathlib import Path
 
@@ -20,6 +21,13 @@ from crosscheck.sim.fluid.run import FluidRun
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import bench_sedimentation_frame as bench  # noqa: E402  (the scenes, shared with the benchmark)
+
+
+@functools.cache
+def _frames() -> tuple[dict, dict]:
+    """The `central` frame at 4 cells per diameter at two speeds that bracket the terminal one,
+    shared by the two tests that need it (they run on one worker: tests/conftest.py)."""
+    return tuple(bench.frame_run(speed, 4) for speed in (0.052, 0.058))
 
 
 def test_walls_moving_with_a_uniform_stream_leave_it_uniform():
@@ -99,7 +107,7 @@ def test_the_coupled_disc_settles_at_the_speed_its_frame_gives():
     and, between the two steps, 1.5 % (1.25 % apart: the exchange's flux estimate, first order
     in the step, at CFL 0.35 for the larger one; an Adams-Bashforth estimate instead was tried
     and read -1.6 / -3.3 %)."""
-    frames = [bench.frame_run(speed, 4) for speed in (0.052, 0.058)]
+    frames = _frames()
     assert all(f["failure"] is None and f["unsteadiness"] < 1e-4 for f in frames)
     assert frames[0]["drag"] < bench.WEIGHT < frames[1]["drag"]
     terminal = bench.terminal_speed(frames)
@@ -144,7 +152,7 @@ def test_central_convection_brings_the_coupled_disc_to_its_frame():
     held = bench.held_run(4, 0.002)
     assert held["failure"] is None and held["drift"] < 0.01
     assert abs(held["third_law_gap"]) < 0.005
-    frames = [bench.frame_run(speed, 4) for speed in (0.052, 0.058)]
+    frames = _frames()
     terminal = bench.terminal_speed(frames)
     driven = [bench.driven_run(4, step, integrator="central", duration=0.8)
               for step in (0.002, 0.001)]
