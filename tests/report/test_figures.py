@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import math
+import warnings
 
 import matplotlib
 
@@ -105,6 +106,32 @@ def test_case_panels_are_the_quantities_that_decide_and_say_why_others_are_not()
     fig = plots.case_figure("c", cells)
     assert fig is not None and fig.data[:4] == b"\x89PNG"
     assert plots.limits(cells, "position_error_max") == [0.01]
+
+
+def test_figures_drawn_in_the_pool_are_those_drawn_in_process_and_a_failure_is_text():
+    """report/figure_pool.py: a report of several cases draws its figures in spawned processes;
+    the bytes must be the ones the calling process draws (the page does not depend on where),
+    and a case whose figure fails comes back as the error's text, the others drawn."""
+    from crosscheck.report import figure_pool
+
+    groups = {f"case{k}": [series_cell("inhouse", "rk4", error=10.0 ** -k),
+                           series_cell("mujoco", "euler", cost=3e-4, error=1e-2)]
+              for k in range(figure_pool.POOL_FROM_CASES)}
+    groups["broken"] = [dict(series_cell("inhouse", "rk4"), series={
+        "energy_drift": {"t": [0.0, 1.0], "y": [1e-3]}})]   # t and y of different lengths
+    here = figure_pool.draw_all(groups, workers=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")   # the pool's fallback warns: it must not be taken
+        pooled = figure_pool.draw_all(groups, workers=2)
+    assert list(pooled) == list(groups)
+    for case in groups:
+        if case == "broken":
+            assert isinstance(pooled[case][0], str) and "ValueError" in pooled[case][0]
+            assert pooled[case][0] == here[case][0]
+            continue
+        for a, b in zip(here[case], pooled[case], strict=True):
+            assert a is not None and b is not None
+            assert (a.mime, a.data) == (b.mime, b.data)
 
 
 def test_pareto_front():

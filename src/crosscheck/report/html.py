@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from crosscheck.report import overview
+from crosscheck.report import figure_pool, overview
 from crosscheck.report.markdown import headline
 from crosscheck.report.overview import anchor
 from crosscheck.report.results import cost_text, mujoco_cost_ratios
@@ -130,34 +130,30 @@ def render(doc: dict[str, Any], series_cells: list[dict[str, Any]] | None = None
     for c in cells:
         by_case.setdefault(c["case"], []).append(c)
     case_info = {c["name"]: c for c in doc.get("cases", [])}
-    for case, group in by_case.items():
-        if group:
-            parts += _case_section(case, group, case_info.get(case, {}), outdir)
+    groups = {case: group for case, group in by_case.items() if group}
+    figures = figure_pool.draw_all(groups)
+    for case, group in groups.items():
+        parts += _case_section(case, group, case_info.get(case, {}), outdir, figures[case])
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
 def _case_section(case: str, group: list[dict[str, Any]], info: dict[str, Any],
-                  outdir: str | Path | None) -> list[str]:
-    from crosscheck.report.cost_plot import cost_figure
-    from crosscheck.report.plots import case_figure, panels
-    from crosscheck.report.style import Looks
+                  outdir: str | Path | None, drawn: figure_pool.Drawn) -> list[str]:
+    """``drawn``: the case's two figures (figure_pool.draw_case)."""
+    from crosscheck.report.plots import panels
 
     parts = [f"<h2 id='{_e(anchor(case))}'>{_e(case)}</h2>",
              f"<p>{_e(info.get('description'))}<br><span class='small'>file "
              f"{_e(info.get('file'))} (sha256 {_e((info.get('sha256') or '')[:12])}); "
              f"reference: {_e(info.get('reference'))}</span></p>"]
-    looks = Looks.of(group)  # one look per run, shared by the case's two figures
-    for what, make in (("the quantities that decide the verdict, over time", case_figure),
-                       ("accuracy against cost", cost_figure)):
-        try:
-            fig = make(case, group, looks)
-        except Exception as exc:  # a plotting failure must not lose the report
-            fig = None
-            parts.append(f"<p class='small'>{_e(what)}: plot failed: {_e(exc)}</p>")
-        if fig is not None:
+    for k, (what, fig) in enumerate(zip(("the quantities that decide the verdict, over time",
+                                         "accuracy against cost"), drawn, strict=True)):
+        if isinstance(fig, str):
+            parts.append(f"<p class='small'>{_e(what)}: plot failed: {_e(fig)}</p>")
+        elif fig is not None:
             parts.append(_img(fig.data, f"{case}: {what}", fig.mime))
-        if make is case_figure:
+        if k == 0:
             omitted = panels(group)[1]
             if omitted:
                 parts.append("<p class='small'>Not drawn: " + "; ".join(
