@@ -348,6 +348,45 @@ kinematic_viscosity = {nu}
     assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.5
 
 
+def test_a_disc_free_to_spin_in_a_shear_flow_turns_with_the_fluid():
+    """A disc in Couette flow (the top wall at +U, the bottom at -U, shear rate 2 U / H) spins
+    at the fluid's own rotation rate, half the shear rate (Jeffery's torque-free rotation of a
+    circular cylinder in Stokes flow), not at the rate the viscous step's ``mu du/dn`` alone
+    balances: that resists even a rigid rotation of the fluid, and the disc spun at 1.986 times
+    half the shear rate before ``Coupling.symmetric_stress_moment`` put back the symmetric
+    stress's moment (a moment only: the force of the same term is zero).
+
+    Re = (2 U / H) a^2 / nu = 0.01; the disc (a = 0.05 m, 4 cells per radius) on the axis of a
+    channel 0.5 m wide (a / h = 0.2) and 2 m long, dense (30 times water: the explicit wall
+    exchange at 0.25 of its limit), no gravity, 15 s (the channel's profile settles on H^2 /
+    (pi^2 nu) = 2.5 s). Measured (2026-11-30): 0.9968 times half the shear rate (`central`
+    0.9969; the channel twice as long 0.9969; 8 cells per radius 0.9910, its end state after
+    20 s). The confinement slows the free rotation below the unbounded value by an amount not
+    known here (the two grids point to about 1 %): bound 3 %."""
+    u_wall, nu = 0.01, 0.01
+    scene = _case("""
+[[bodies]]
+name = "disc"
+shape = { circle = { radius = 0.05 } }
+density = 30000.0
+position = [1.0, 0.25]
+""", f"""
+domain = [2.0, 0.5]
+resolution = [160, 40]
+kinematic_viscosity = {nu}
+lid = [{{ side = "top", speed = {u_wall} }}, {{ side = "bottom", speed = {-u_wall} }}]
+""", effects="", duration=15.0, dt=0.02)
+    rec = FluidRun(scene, "semi_lagrangian").record()
+    assert rec.failure is None
+    assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.5
+    half_shear = -0.5 * (2.0 * u_wall / 0.5)      # clockwise: the fluid's rotation
+    w = np.asarray(rec.series["body_omega.disc"])
+    assert w[-1] / half_shear == pytest.approx(1.0, abs=0.03)
+    assert abs(w[-1] - w[-11]) < 1e-3 * abs(half_shear)      # settled
+    assert np.max(np.abs(rec.series["body_vx.disc"])) < 1e-6     # the disc stays put
+    assert np.max(np.abs(rec.series["body_vy.disc"])) < 1e-6
+
+
 def test_floating_disc(fluid_case):
     """A disc of half the water's density (radius 0.08 m, 5.1 cells) released at the box's
     point, 0.009 m above its half-immersed equilibrium, in the floating-box tank: the circle's
@@ -548,11 +587,11 @@ kinematic_viscosity = {nu}
     if crank_nicolson:
         # the new field alone: the explicit half's wall terms are missed
         new_only = copy.deepcopy(c)
-        new_only.viscous_exchange(un, vn, (lu, lv), nu, dt, MOVING_THETA_MIN)
+        new_only.viscous_exchange(un, vn, (lu, lv), nu, dt, MOVING_THETA_MIN, st.phi)
         assert not np.allclose(new_only.body.mass * (v_before - new_only.body.v), gained,
                                rtol=0.02)
         un, vn = 0.5 * (un + uo), 0.5 * (vn + vo)
-    c.viscous_exchange(un, vn, (lu, lv), nu, dt, MOVING_THETA_MIN)
+    c.viscous_exchange(un, vn, (lu, lv), nu, dt, MOVING_THETA_MIN, st.phi)
     lost = c.body.mass * (v_before - c.body.v)
     assert np.all(np.abs(gained) > 1e-6)
     assert lost == pytest.approx(gained, rel=1e-6)

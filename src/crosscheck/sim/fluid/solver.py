@@ -426,7 +426,7 @@ class FluidState:
                         # field's (both against the body's present velocity; linear in q)
                         coupling.viscous_exchange(0.5 * (un + self.u) if cn else un,
                                                   0.5 * (vn + self.v) if cn else vn,
-                                                  links, nu, dt, theta_min)
+                                                  links, nu, dt, theta_min, self.phi)
                 else:
                     n_sub = max(1, math.ceil(k_total / VISCOUS_SUBSTEP_LIMIT))
                     for _ in range(n_sub):
