@@ -128,12 +128,17 @@ def baseline_from_results(results: dict[str, Any], *, source: str = "",
             "metrics": metrics, "cost": cell.get("cost"),
         }
     slack = (previous or {}).get("slack") or DEFAULT_SLACK
+    engines = dict(results.get("engines") or {})
+    if merge and previous:
+        # the kept cells came from the engines the previous baseline recorded: a run of one
+        # engine must not drop the others' versions (the reports compare them with each run's)
+        engines = {**((previous.get("source") or {}).get("engines") or {}), **engines}
     return {
         "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "created": _now(),
         "crosscheck_version": results.get("crosscheck_version"),
         "source": {"results": source, "started": results.get("started"),
                    "commit": results.get("commit"),
-                   "machine": results.get("machine"), "engines": results.get("engines")},
+                   "machine": results.get("machine"), "engines": engines},
         "slack": slack,
         "entries": dict(sorted(entries.items())),
     }

@@ -57,6 +57,20 @@ def test_regressions_improvements_and_unchanged():
     assert "missing" in text and "new" in text
 
 
+def test_a_merged_baseline_keeps_the_cells_and_engine_versions_it_did_not_rerun():
+    first = dict(results(cell("a", "mujoco", energy_drift=1e-3), cell("b", "inhouse")),
+                 engines={"mujoco": "4.0.0", "inhouse": "0.1.0"})
+    base = baseline_from_results(first)
+    rerun = dict(results(cell("b", "inhouse", energy_drift=2e-3)), engines={"inhouse": "0.1.1"})
+    merged = baseline_from_results(rerun, previous=base, merge=True)
+    assert set(merged["entries"]) == set(base["entries"])
+    assert merged["entries"]["b::inhouse-rk4@dt=0.001"]["metrics"] == {"energy_drift": 2e-3}
+    assert merged["source"]["engines"] == {"mujoco": "4.0.0", "inhouse": "0.1.1"}
+    alone = baseline_from_results(rerun, previous=base)
+    assert set(alone["entries"]) == {"b::inhouse-rk4@dt=0.001"}
+    assert alone["source"]["engines"] == {"inhouse": "0.1.1"}
+
+
 def test_status_changes():
     base = baseline_from_results(results(cell("a", "x"), cell("a", "y", "fail"),
                                          cell("a", "z")))
