@@ -48,6 +48,17 @@ shape = { box = { size = [0.2, 0.1] } }
 density = 500.0
 position = [0.5, %s]
 """
+def _disc(radius: float, density: float, x: float, y: float) -> str:
+    """A disc body's table in a case."""
+    return f"""
+[[bodies]]
+name = "disc"
+shape = {{ circle = {{ radius = {radius} }} }}
+density = {density}
+position = [{x}, {y}]
+"""
+
+
 TANK = """
 domain = [1.0, 0.5]
 resolution = [64, 32]
@@ -205,13 +216,7 @@ def test_disc_sinking_in_a_closed_box_loses_energy():
     energy of fluid and body (kinetic, potential of both) never grows (semi-Lagrangian
     advection and the projection only take energy out) and the body's kinetic energy is
     well below what it would have falling in vacuum."""
-    scene = _case("""
-[[bodies]]
-name = "disc"
-shape = { circle = { radius = 0.05 } }
-density = 2000.0
-position = [0.5, 0.7]
-""", """
+    scene = _case(_disc(0.05, 2000.0, 0.5, 0.7), """
 domain = [1.0, 1.0]
 resolution = [48, 48]
 """, duration=0.3, dt=0.005)
@@ -364,13 +369,7 @@ def test_a_disc_free_to_spin_in_a_shear_flow_turns_with_the_fluid():
     20 s). The confinement slows the free rotation below the unbounded value by an amount not
     known here (the two grids point to about 1 %): bound 3 %."""
     u_wall, nu = 0.01, 0.01
-    scene = _case("""
-[[bodies]]
-name = "disc"
-shape = { circle = { radius = 0.05 } }
-density = 30000.0
-position = [1.0, 0.25]
-""", f"""
+    scene = _case(_disc(0.05, 30000.0, 1.0, 0.25), f"""
 domain = [2.0, 0.5]
 resolution = [160, 40]
 kinematic_viscosity = {nu}
