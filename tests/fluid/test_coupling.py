@@ -353,6 +353,43 @@ kinematic_viscosity = {nu}
     assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.5
 
 
+@pytest.mark.parametrize("h", [-0.2, -0.05, 0.0, 0.04, 0.09, 0.2])
+def test_the_wetted_walls_moment_arm_is_the_integral_over_the_wetted_boundary(h):
+    """``bodygeom.wetted_moment_arm`` (the symmetric stress's moment on a body the free surface
+    cuts, ``Coupling.symmetric_stress_moment``) from areas and the chord, against the integral
+    of ``(x - p) . n`` over the boundary below the level done directly: on a circle's wetted
+    arc ``a`` times its length plus ``(c - p)`` against the arc's normals (``-chord up``); on a
+    turned box, edge by edge, each edge's distance from ``p`` times its length below the level.
+    The level ``h`` from the shape's centre: above it, through it, below it, beyond it."""
+    up = np.array([0.0, 1.0])
+    p = np.array([0.31, 0.52])     # the point the moment is taken about (off the centre)
+    c, a = np.array([0.3, 0.5]), 0.1
+    level = c[1] + h
+    k, cc, r, verts = bodygeom.shape_params(Placed(Circle(a), c))
+    hh = float(np.clip(h, -a, a))
+    arc = 2.0 * a * math.acos(-hh / a)
+    chord = 2.0 * math.sqrt(a * a - hh * hh)
+    direct = a * arc + float((c - p) @ (-chord * up))
+    got = bodygeom.wetted_moment_arm(k, cc, r, verts, up, level, p)
+    assert got == pytest.approx(direct, rel=1e-6, abs=1e-12)
+
+    k, cc, r, verts = bodygeom.shape_params(Placed(Box((0.24, 0.12)), c, 0.4))
+    direct = 0.0
+    for v0, v1 in zip(verts, np.roll(verts, -1, axis=0), strict=True):
+        edge = v1 - v0
+        normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)   # outward (CCW)
+        s0, s1 = v0[1] - level, v1[1] - level      # the part with y < level
+        if s0 < 0.0 and s1 < 0.0:
+            below = 1.0
+        elif s0 < 0.0 or s1 < 0.0:
+            below = -min(s0, s1) / abs(s1 - s0)
+        else:
+            continue
+        direct += float((v0 - p) @ normal) * np.linalg.norm(edge) * below
+    got = bodygeom.wetted_moment_arm(k, cc, r, verts, up, level, p)
+    assert got == pytest.approx(direct, rel=1e-6, abs=1e-12)
+
+
 def test_a_disc_free_to_spin_in_a_shear_flow_turns_with_the_fluid():
     """A disc in Couette flow (the top wall at +U, the bottom at -U, shear rate 2 U / H) spins
     at the fluid's own rotation rate, half the shear rate (Jeffery's torque-free rotation of a

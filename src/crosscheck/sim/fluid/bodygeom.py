@@ -323,6 +323,20 @@ def clip_below(verts, nx_, ny_, level):
     return 0.5 * a2, cx / (3.0 * a2), cy / (3.0 * a2)
 
 
+def wetted_moment_arm(kind: int, c: np.ndarray, r: float, verts: np.ndarray, up: np.ndarray,
+                      level: float, about: np.ndarray) -> float:
+    """The integral of ``(x - about) . n`` over the shape's boundary below the line ``up . x =
+    level`` (n the outward normal): ``2 A_sub`` less the chord's share (the part below the line
+    is closed by the chord, where ``n = up``; ``div (x - about) = 2``). The chord's length is the
+    derivative of the area below the line with the level (central difference; the area is
+    smooth in the level for a convex shape)."""
+    area, _ = submerged(kind, c, r, verts, up, level)
+    eps = 1e-7 * max(r, float(np.ptp(verts)) if verts.size else 0.0, 1e-12)
+    chord = (submerged(kind, c, r, verts, up, level + eps)[0]
+             - submerged(kind, c, r, verts, up, level - eps)[0]) / (2.0 * eps)
+    return 2.0 * area - (level - float(up @ about)) * chord
+
+
 def submerged(kind: int, c: np.ndarray, r: float, verts: np.ndarray, up: np.ndarray,
               level: float) -> tuple[float, np.ndarray]:
     """Area and centroid of the shape's part below the line ``up . x = level`` (``up`` a unit

@@ -553,13 +553,8 @@ class Coupling:
         g, b = self.geometry, self.body
         gmag = float(np.linalg.norm(self.gravity))
         up = -self.gravity / gmag if gmag > 0.0 else np.array([0.0, 1.0])
-        level = self.level(phi)
-        area, _ = bodygeom.submerged(g.kind, g.centre, g.radius, g.verts, up, level)
-        eps = 1e-6 * self.dx    # the chord: the derivative of the area below the level
-        chord = (bodygeom.submerged(g.kind, g.centre, g.radius, g.verts, up, level + eps)[0]
-                 - bodygeom.submerged(g.kind, g.centre, g.radius, g.verts, up, level - eps)[0]
-                 ) / (2.0 * eps)
-        wetted = 2.0 * area - (level - float(up @ b.x)) * chord
+        wetted = bodygeom.wetted_moment_arm(g.kind, g.centre, g.radius, g.verts, up,
+                                            self.level(phi), b.x)
         return self.rho * nu * b.omega * wetted
 
     # -- measurements ------------------------------------------------------------------------
