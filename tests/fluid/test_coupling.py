@@ -423,6 +423,49 @@ lid = [{{ side = "top", speed = {u_wall} }}, {{ side = "bottom", speed = {-u_wal
     assert np.max(np.abs(rec.series["body_vy.disc"])) < 1e-6
 
 
+def test_a_spinning_disc_gives_the_fluid_the_angular_momentum_it_loses():
+    """Angular momentum of fluid and body about the disc's centre, while the vortex the disc
+    spins up is far from the box's walls (sqrt(nu t) 0.03 m at 0.1 s, the walls 0.4 m from the
+    disc): what the fluid gains (its faces weighted by their open fractions, as the projection
+    counts them) is what the body loses. The body's share of the viscous wall terms is that of
+    the symmetric stress (``Coupling.symmetric_stress_moment``): with ``mu du/dn`` alone the
+    fluid gained 1.18 times what the body lost after 0.05 s and 1.25 after 0.1 s, angular
+    momentum made by the exchange. Measured with it (2026-11-30; `central`, Re = omega a^2 /
+    nu = 2): 0.969 and 0.968 (at twice the grid 0.969 and 0.974; at Re 0.4 0.966 after 0.05
+    s; `semi_lagrangian` 0.960). What the remaining 3 % is, is not known: it is the same at both
+    grids, so not the wall terms' lever (the fluid sample lies up to a cell from the wall point
+    the body's share is taken at), nor the convection (the same at Re 0.4). Bound 6 %."""
+    from crosscheck.sim.fluid.boundary import SolidBoundary
+
+    a, w0, n = 0.1, 2.0, 64
+    scene = _case(_disc(a, 1000.0, 0.5, 0.5) + f"angular_velocity = {w0}\n", f"""
+domain = [1.0, 1.0]
+resolution = [{n}, {n}]
+kinematic_viscosity = 0.01
+output = {{ fields = ["u", "v"] }}
+""", effects="", duration=0.1, dt=0.005)
+    scene = dataclasses.replace(scene, run=dataclasses.replace(scene.run, sample_every=0.05))
+    rec = FluidRun(scene, "central").record()
+    assert rec.failure is None
+    assert rec.meta["coupling"]["viscous_exchange_number_max"] < 0.6
+    dx = 1.0 / n
+    bnd = SolidBoundary.from_shapes([Placed(Circle(a), np.array([0.5, 0.5]), 0.0)], n, n, dx,
+                                    np.zeros(4, bool))
+    wu = np.where(bnd.u_dist >= 0.0, 1.0 - bnd.u_frac, 0.0)
+    wv = np.where(bnd.v_dist >= 0.0, 1.0 - bnd.v_frac, 0.0)
+    yu = (np.arange(n) + 0.5) * dx - 0.5
+    xv = (np.arange(n) + 0.5) * dx - 0.5
+    inertia = 1000.0 * math.pi * a ** 4 / 2.0
+    w = np.asarray(rec.series["body_omega.disc"])
+    assert len(rec.fields["u"]) == len(w) == 3
+    for k in (1, 2):
+        u, v = np.asarray(rec.fields["u"][k]), np.asarray(rec.fields["v"][k])
+        fluid = 1000.0 * dx * dx * (np.sum(wv * xv[:, None] * v) - np.sum(wu * yu[None, :] * u))
+        lost = inertia * (w0 - w[k])
+        assert lost > 0.3 * inertia * w0                  # the exchange is not small
+        assert fluid == pytest.approx(lost, rel=0.06)
+
+
 def test_floating_disc(fluid_case):
     """A disc of half the water's density (radius 0.08 m, 5.1 cells) released at the box's
     point, 0.009 m above its half-immersed equilibrium, in the floating-box tank: the circle's
