@@ -48,6 +48,8 @@ shape = { box = { size = [0.2, 0.1] } }
 density = 500.0
 position = [0.5, %s]
 """
+
+
 def _disc(radius: float, density: float, x: float, y: float) -> str:
     """A disc body's table in a case."""
     return f"""

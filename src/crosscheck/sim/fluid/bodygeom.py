@@ -331,7 +331,8 @@ def wetted_moment_arm(kind: int, c: np.ndarray, r: float, verts: np.ndarray, up:
     derivative of the area below the line with the level (central difference; the area is
     smooth in the level for a convex shape)."""
     area, _ = submerged(kind, c, r, verts, up, level)
-    eps = 1e-7 * max(r, float(np.ptp(verts)) if verts.size else 0.0, 1e-12)
+    size = float(np.max(np.ptp(verts, axis=0))) if verts.size else 0.0   # a polygon's extent
+    eps = 1e-7 * max(r, size, 1e-12)
     chord = (submerged(kind, c, r, verts, up, level + eps)[0]
              - submerged(kind, c, r, verts, up, level - eps)[0]) / (2.0 * eps)
     return 2.0 * area - (level - float(up @ about)) * chord
