@@ -425,12 +425,14 @@ lid = [{{ side = "top", speed = {u_wall} }}, {{ side = "bottom", speed = {-u_wal
     assert np.max(np.abs(rec.series["body_vy.disc"])) < 1e-6
 
 
-def _angular_momentum_given(n: int, steps: int, dt: float) -> float:
+def _angular_momentum_given(n: int, steps: int, dt: float, nu: float = 0.01,
+                            scheme: str = "central") -> float:
     """A disc (a = 0.1 m, the water's density) spinning at 2 rad/s in a closed 1 m box at rest,
-    nu = 0.01 (Re = omega a^2 / nu = 2), `central`: after ``steps`` steps, the angular momentum
-    the fluid gained about the disc's centre over what the body lost. The fluid's faces are
-    weighted as the viscous step and the projection count them: by their open fractions, the
-    slivers (faces whose sample lies in the body, viscosity.sliver_links) by theirs."""
+    nu = 0.01 by default (Re = omega a^2 / nu = 2), `central` by default: after ``steps``
+    steps, the angular momentum the fluid gained about the disc's centre over what the body
+    lost. The fluid's faces are weighted as the viscous step and the projection count them: by
+    their open fractions, the slivers (faces whose sample lies in the body,
+    viscosity.sliver_links) by theirs."""
     from collections import defaultdict
 
     from crosscheck.sim.fluid.viscosity import sliver_links
@@ -438,9 +440,9 @@ def _angular_momentum_given(n: int, steps: int, dt: float) -> float:
     scene = _case(_disc(0.1, 1000.0, 0.5, 0.5) + "angular_velocity = 2.0\n", f"""
 domain = [1.0, 1.0]
 resolution = [{n}, {n}]
-kinematic_viscosity = 0.01
+kinematic_viscosity = {nu}
 """, effects="", duration=steps * dt, dt=dt)
-    st = FluidState(scene.fluid, np.zeros(2), INTEGRATORS["central"])
+    st = FluidState(scene.fluid, np.zeros(2), INTEGRATORS[scheme])
     body = st.coupling.body
     w0 = body.omega
     timers: dict = defaultdict(float)
@@ -461,7 +463,7 @@ kinematic_viscosity = 0.01
     fluid = 1000.0 * dx * dx * (np.sum(wv * x_v[:, None] * st.v)
                                 - np.sum(wu * y_u[None, :] * st.u))
     lost = body.inertia * (w0 - body.omega)
-    assert lost > 0.3 * body.inertia * w0               # the exchange is not small
+    assert lost > 0.15 * body.inertia * w0              # the exchange is not small
     return fluid / lost
 
 
@@ -482,6 +484,21 @@ def test_a_spinning_disc_gives_the_fluid_the_angular_momentum_it_loses():
     fine = _angular_momentum_given(128, 40, 0.0025)
     assert coarse == pytest.approx(1.0, abs=0.04)
     assert abs(1.0 - fine) < 0.75 * abs(1.0 - coarse)
+
+
+@pytest.mark.parametrize("scheme", ["central", "maccormack"])
+def test_the_convection_at_a_spinning_discs_wall_gives_the_body_the_moment_it_makes(scheme):
+    """The same disc at Re = omega a^2 / nu = 200 (nu = 1e-4), 0.4 s, 128 cells: now the
+    convection at the cut cells, not the viscous step, is what breaks the balance. It makes
+    angular momentum at the wall (the fluxes between the cut faces and the body's samples), and
+    ``Coupling.convective_exchange`` gives the body what it made in the band around the wall,
+    the moment as well as the momentum. Measured (2026-11-30): the fluid's gain over the body's
+    loss 0.9934 with `central`, 0.9932 with `maccormack` (64 cells: 0.9919 / 0.9914); with the
+    momentum's balance alone 1.049 and 1.025 (0.998 / 1.012 at 64), the convection alone having
+    given the fluid 0.056 and 0.032 of the body's loss. Bound 2 %: the viscous wall terms'
+    first-order lever (the test above) is about 1 % at this grid."""
+    assert _angular_momentum_given(128, 160, 0.0025, nu=1e-4, scheme=scheme) == \
+        pytest.approx(1.0, abs=0.02)
 
 
 def test_floating_disc(fluid_case):
