@@ -22,8 +22,9 @@ positions (m), orientations (rad) and velocities (m/s, rad/s); ``blowup_time`` g
 sample interval's worth, 0.05 s; the round-off-seeded symmetry breaking of a settling disc
 (``centreline_offset``, ``centreline_offset_mean``, ``terminal_velocity_unsteadiness``) gets
 ``abs`` 1e-4 (m, or diameters) and 2e-3. A baseline file may override any of them in its ``"slack"``
-table (``{"metric": {"abs": .., "rel": ..}}``, or ``"default"``); ``baseline update`` keeps the
-table of the file it replaces.
+table (``{"metric": {"abs": .., "rel": ..}}``, or ``"default"``), and one case's metric alone
+with the key ``"<case>::<metric>"`` (a chaotic case whose symmetry breaking round-off sets);
+``baseline update`` keeps the table of the file it replaces.
 
 Wall-time cost is stored for information but is **not** a regression criterion: machines differ
 (a CI runner against a laptop) far more than any slack would allow, so timing is left to the
@@ -225,10 +226,13 @@ class Comparison:
         return out
 
 
-def slack_for(metric: str, old: float, table: dict[str, dict[str, float]] | None) -> float:
+def slack_for(metric: str, old: float, table: dict[str, dict[str, float]] | None,
+              case: str | None = None) -> float:
+    """The slack of ``metric`` (``max(abs, rel * |old|)``): the table's entry for this case's
+    metric (``"<case>::<metric>"``) if it has one, else for the metric, else the default."""
     table = table or DEFAULT_SLACK
-    spec = table.get(metric) or DEFAULT_SLACK.get(metric) or table.get("default") \
-        or DEFAULT_SLACK["default"]
+    spec = ((table.get(f"{case}::{metric}") if case else None) or table.get(metric)
+            or DEFAULT_SLACK.get(metric) or table.get("default") or DEFAULT_SLACK["default"])
     return max(float(spec.get("abs", 0.0)), float(spec.get("rel", 0.0)) * abs(old))
 
 
@@ -270,7 +274,7 @@ def compare(baseline: dict[str, Any], results: dict[str, Any]) -> Comparison:
             if value is None:
                 cmp.dropped_metrics.append(Change(key, name, old_value, None))
                 continue
-            s = slack_for(name, old_value, slack_table)
+            s = slack_for(name, old_value, slack_table, cell.get("case"))
             worse, better = (value < old_value - s, value > old_value + s) \
                 if name in HIGHER_IS_BETTER else (value > old_value + s, value < old_value - s)
             if isinstance(value, float) and math.isnan(value):
