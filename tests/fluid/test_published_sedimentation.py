@@ -69,7 +69,7 @@ CASE = Path(__file__).resolve().parents[2] / "cases" / "fluid" / "sedimentation_
 
 
 @pytest.mark.parametrize(("edits", "expected"), [
-    ({"domain = [4.0,": "domain = [5.0,", "resolution = [32,": "resolution = [40,"},
+    ({"domain = [4.0,": "domain = [5.0,", "resolution = [48,": "resolution = [60,"},
      "4 diameters wide"),
     ({"kinematic_viscosity = 0.008088": "kinematic_viscosity = 0.01"}, "Galileo number"),
     ({"density = 1500.0": "density = 1250.0"}, "density ratio"),
