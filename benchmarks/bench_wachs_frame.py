@@ -74,8 +74,14 @@ output = {{ forces = true }}
 
 def run(spec: str, duration: float) -> dict:
     cells_text, _, variant = spec.partition(":")
-    cells = int(cells_text)
-    offset = float(variant[3:]) if variant.startswith("off") else 0.0
+    try:
+        cells = int(cells_text)
+        offset = float(variant[3:]) if variant else 0.0
+        if variant and not variant.startswith("off"):
+            raise ValueError(variant)
+    except ValueError:
+        raise SystemExit(f"--runs {spec!r}: expected <cells> or <cells>:off<distance in d>, "
+                         "as 16 or 16:off0.02") from None
     scene = load_case_text(frame_case(cells, offset, duration), "wachs_frame.toml")
     t0 = time.perf_counter()
     rec = FluidRun(scene, "central").record()

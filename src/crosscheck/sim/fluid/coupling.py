@@ -202,6 +202,10 @@ class Coupling:
         self.nx, self.ny, self.dx = nx, ny, dx
         self.rho = density
         self.gravity = np.asarray(gravity, float)[:2]
+        # gravity's size and the upward unit vector (straight up without gravity: a free
+        # surface's level is then still a height), for the hydrostatic force and the moment
+        self.g_mag = float(np.linalg.norm(self.gravity))
+        self.up = -self.gravity / self.g_mag if self.g_mag > 0.0 else np.array([0.0, 1.0])
         self.static = static
         self.has_surface = has_surface
         # the static solid's parts a cut boundary needs, once
@@ -340,10 +344,9 @@ class Coupling:
         at that area's centroid (``bodygeom.submerged``). This is a force known before the
         solve (geometry and level only), added to ``V*``; the solve stays symmetric."""
         g = self.geometry
-        gmag = float(np.linalg.norm(self.gravity))
+        gmag, up = self.g_mag, self.up
         if gmag == 0.0 or jv.shape[0] == 0:
             return np.zeros(3)
-        up = -self.gravity / gmag
         level = self.level(phi)
         area, centroid = bodygeom.submerged(g.kind, g.centre, g.radius, g.verts, up, level)
         b = self.body
@@ -568,9 +571,7 @@ class Coupling:
         diameter, Re 0.01; tests/fluid/test_coupling.py), and a disc spinning in a fluid at
         rest felt half the wall's stress."""
         g, b = self.geometry, self.body
-        gmag = float(np.linalg.norm(self.gravity))
-        up = -self.gravity / gmag if gmag > 0.0 else np.array([0.0, 1.0])
-        wetted = bodygeom.wetted_moment_arm(g.kind, g.centre, g.radius, g.verts, up,
+        wetted = bodygeom.wetted_moment_arm(g.kind, g.centre, g.radius, g.verts, self.up,
                                             self.level(phi), b.x)
         return self.rho * nu * b.omega * wetted
 
