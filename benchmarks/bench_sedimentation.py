@@ -14,7 +14,9 @@ estimate of the grid-converged value.
     # with --tag _offaxis the releases off the axis re-measured with the incremental coupled
     # projection (8:offset 12:offset 8:offset+dt0.01); with --tag _offaxis_remedies the
     # release at 8 with the moving-wall remedies (8:offset; 12 not re-run); with --tag _central
-    # the central scheme at 8 (8:central+dt0.02 8:central+dt0.01)
+    # the central scheme at 8 (8:central+dt0.02 8:central+dt0.01); with --tag _offaxis_steps12
+    # and _offaxis_steps16 the step study of the release off the axis in the 45 d channel
+    # (12:offset+short+dt0.02 ... +dt0.005, 16:offset+short+dt0.02 +dt0.01 +dt0.006667 +dt0.005)
 
 The benchmark (reference/data/wachs2009_disc_channel_sedimentation.csv, its header has the one
 public copy found): d = 1, channel w = 4 d, nu = 0.008088, g = 10, rho_s / rho = 1.5, published
@@ -31,7 +33,9 @@ instead of MacCormack), ``dt<step>`` (the largest step and the sampling interval
 fluid's CFL
 number, default 1), ``offset`` (released 1 d
 off the axis as in the benchmark, in a channel 100 d tall for 45 s, the window from 16 s: the
-disc wanders across the axis, so the mean speed needs many diameters of travel); variants
+disc wanders across the axis, so the mean speed needs many diameters of travel), ``short``
+after it (the same release in a channel 45 d tall, 20 s, the window from 8 s: a step study's
+scene, within 0.2 % of the long run's speed over the same window at 12 cells); variants
 combine with ``+`` (``8:offset+dt0.01``). Each finished run is appended to
 ``benchmarks/results/sedimentation.json`` (a long study survives a stop) and
 ``sedimentation.md`` is written from everything in it.
@@ -229,6 +233,10 @@ def parse_run(spec: str) -> dict:
             run["kw"]["cfl"] = float(variant[3:])
         elif variant == "offset":
             run["kw"].update(offset=-1.0, length=100.0, duration=45.0, settle=16.0)
+        elif variant == "short":
+            # the same release in a channel 45 d tall, 20 s, the window from 8 s (about 24 d of
+            # travel ending about 2.5 d above the bottom): after ``offset``, a step study's scene
+            run["kw"].update(length=45.0, duration=20.0, settle=8.0)
         else:
             raise SystemExit(f"unknown variant {variant!r}")
     return run
@@ -336,7 +344,41 @@ def markdown(result: dict) -> str:
             f"{_f(r.get('centreline_offset_mean'), '{:.3f}')}"
             f" | {r['wall_s']:.0f} | {r['load']:.1f} |")
     lines += _convergence(result["runs"], u_ref)
+    lines += _step_studies(result["runs"], u_ref)
     return "\n".join(lines) + "\n"
+
+
+def _step_studies(runs: list[dict], u_ref: float) -> list[str]:
+    """Per grid, the runs of one scene at several steps (the ``short`` off-axis release): the
+    speed against the step and the line ``U0 + b dt`` through the steps of at most 0.16 dx by
+    least squares (a first-order remainder in the step; its residual says how well a line
+    holds)."""
+    out = []
+    groups: dict[tuple, list[dict]] = {}
+    for r in runs:
+        if r.get("failure") or r["terminal_velocity"] is None or "short" not in r["variant"]:
+            continue
+        scene = "+".join(v for v in r["variant"].split("+") if not v.startswith("dt"))
+        groups.setdefault((r["cells_per_diameter"], scene), []).append(r)
+    for (cells, scene), rows in sorted(groups.items()):
+        if len(rows) < 2:
+            continue
+        rows.sort(key=lambda r: -r["dt_max"])
+        dts = np.array([r["dt_max"] for r in rows])
+        us = np.array([r["terminal_velocity"] for r in rows])
+        out += ["", f"Step study, d/dx {cells}, {scene}:", ""]
+        out += [f"* dt {dt:.5f} ({dt * cells:.2f} dx): U {u:.4f}, {u / u_ref - 1:+.2%} from the "
+                "published value" for dt, u in zip(dts, us, strict=True)]
+        # the line through the steps of at most 0.16 dx (CFL 0.34 at the terminal speed): the
+        # coarser ones lie off it (most of the change is between 0.24-0.32 dx and 0.12-0.16 dx)
+        fine = dts * cells <= 0.16 + 1e-6
+        if fine.sum() >= 3:
+            b, u0 = np.polyfit(dts[fine], us[fine], 1)
+            resid = float(np.max(np.abs(u0 + b * dts[fine] - us[fine])) / u_ref)
+            out.append(f"* the line U0 + b dt through the steps of at most 0.16 dx: U0 {u0:.4f} "
+                       f"({u0 / u_ref - 1:+.2%} from the published value), b {b:.3f}, largest "
+                       f"residual {resid:.2%} of the published U")
+    return out
 
 
 def _step_family(dt_over_dx: float):
