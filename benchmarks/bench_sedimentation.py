@@ -171,6 +171,7 @@ def held_run(cells: int, step: float, integrator: str = "maccormack",
             "integrator": integrator, "duration": duration, "body_force": body,
             "fluid_balance": fluid, "third_law_gap": body / fluid - 1.0,
             "drag_coefficient": body / (0.5 * 1000.0 * HELD_SPEED ** 2 * D), "drift": drift,
+            "dt_mean": (rec.meta.get("dt") or {}).get("mean"),
             "failure": rec.failure, "wall_s": wall, "load": os.getloadavg()[0]}
 
 
@@ -240,6 +241,7 @@ def motion_run(cells: int, step: float, integrator: str = "maccormack") -> dict:
                                   "frame.toml"), integrator).record()
     t = np.asarray(rec.t)
     fixed = float(np.mean(np.asarray(rec.series["force_y.disc"])[t > 8.0])) / q
+    fixed_dt = (rec.meta.get("dt") or {}).get("mean")
     fixed_wall = time.perf_counter() - t0
     held = held_run(cells, step, integrator)
     t0 = time.perf_counter()
@@ -254,6 +256,9 @@ def motion_run(cells: int, step: float, integrator: str = "maccormack") -> dict:
             "integrator": integrator, "fixed_cd": fixed, "held_cd": held["drag_coefficient"],
             "held_third_law_gap": held["third_law_gap"], "driven_cd": driven,
             "driven_speed": float(np.mean(u)), "driven_speed_change": float(u[-1] / u[0] - 1.0),
+            # the steps taken (the CFL limit cuts the largest step where the flow is fast)
+            "dt_mean": {"fixed": fixed_dt, "held": held["dt_mean"],
+                        "driven": (rec.meta.get("dt") or {}).get("mean")},
             "failure": rec.failure or held["failure"],
             "wall_s": fixed_wall + held["wall_s"] + time.perf_counter() - t0,
             "load": os.getloadavg()[0]}
@@ -269,17 +274,21 @@ def motion_markdown(rows: list[dict]) -> str:
              "crossing the grid). All on the channel's axis, the wake symmetric; the fixed and "
              "held discs over 8-12 s, the driven one over 4-11 s, so the three differ by their "
              "start and window as well; what the study reads is each one's change with the step. "
+             "The mean step each run took (the CFL limit cuts the largest step where the flow is "
+             "fast): '-' in rows measured before it was recorded. "
              "Wall: the three runs together, timed beside other work (not a speed figure).",
-             "", "| run | d/dx | step | step / dx | advection | fixed C_D | held C_D | held gap "
-             "| driven C_D | driven speed change | wall (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "", "| run | d/dx | step | step / dx | advection | mean step taken (fixed / held / "
+             "driven) | fixed C_D | held C_D | held gap | driven C_D | driven speed change "
+             "| wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["integrator"], r["cells_per_diameter"], -r["step"])):
         if r.get("failure"):
             lines.append(f"| {r['run']} | failed: {r['failure']} |")
             continue
+        taken = r.get("dt_mean") or {}
+        taken = " / ".join(_f(taken.get(k), "{:.4f}") for k in ("fixed", "held", "driven"))
         lines.append(f"| {r['run']} | {r['cells_per_diameter']} | {r['step']:g} | "
                      f"{r['step'] * r['cells_per_diameter']:.2f} | {r['integrator']} | "
-                     f"{r['fixed_cd']:.4f} | {r['held_cd']:.4f} | "
+                     f"{taken} | {r['fixed_cd']:.4f} | {r['held_cd']:.4f} | "
                      f"{r['held_third_law_gap']:+.2%} | {r['driven_cd']:.4f} | "
                      f"{r['driven_speed_change']:+.2%} | {r['wall_s']:.0f} |")
     return "\n".join(lines) + "\n"
