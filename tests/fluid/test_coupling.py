@@ -180,12 +180,13 @@ def test_box_at_its_archimedes_draft_stays_there():
 def test_floating_box_case(runs):
     """The case file: released 0.01 m above its draft (a fifth of it), the box heaves about its
     Archimedes draft (mean submerged area over the last two thirds within 1 % of M / rho: 0.74 %
-    measured at this grid, 0.57 and 0.69 % at half and twice the resolution, i.e. the residual
+    measured at this grid, 0.58 and 0.69 % at half and twice the resolution, i.e. the residual
     is the heave's nonlinearity and the waves' mean, not the grid: a 1 % draft error is
     0.03 cells of the 3.2-cell draft), its natural period within 10 % of the estimate with the
-    high-frequency added mass (5.1 % measured; 2.4 and 3.2 % at half and twice), volume within
-    1e-3 (1e-5 measured), and its energy with the level set's volume error taken out never
-    grows by more than 5 % of ``M g`` times its release height (2.3 % measured)."""
+    high-frequency added mass (5.0 % measured; 2.3 and 3.2 % at half and twice), volume within
+    1e-3 (1.5e-5 measured), and its energy with the level set's volume error taken out never
+    grows by more than 5 % of ``M g`` times its release height (2.3 % measured; all
+    2026-12-01)."""
     scene, rec = runs("floating_box", "semi_lagrangian")
     assert rec.failure is None
     m = fluid_metrics(scene, rec)
@@ -506,12 +507,12 @@ def test_floating_disc(fluid_case):
     point, 0.009 m above its half-immersed equilibrium, in the floating-box tank: the circle's
     cut cells, its exact circular-segment buoyancy and the same metrics. Measured at this grid:
     draft error 0.49 % (0.52 and 0.47 % at half and twice the resolution), volume 1e-5, energy
-    growth 2.5 % (0.4 % at twice).
+    growth 2.5 % (0.4 % at twice; 2026-12-01).
 
     Its heave against Ursell's (1949) linear theory of a half-immersed circle in deep water
     (reference.fluid_data.floating_circle_heave: added mass and damping at the body's own
     frequency, omega^2 R / g = 0.80): natural period 0.6352 s, damping ratio 0.164. Measured
-    0.621 s (-2.2 %) and 0.174 (+6 %); at half and twice the resolution 0.638 / 0.622 s and
+    0.621 s (-2.2 %) and 0.174 (+6 %); at half and twice the resolution 0.637 / 0.622 s and
     0.211 / 0.177, so the period has converged 2 % below the theory's, whose deep water (the
     tank's depth is 3.1 R, k h = 2.5), small motion (the release is 0.11 R) and open sides (the
     fit stops before the waves come back from the walls) the run only approaches. The bounds:
@@ -530,11 +531,12 @@ def test_floating_disc(fluid_case):
 @pytest.mark.parametrize("density", [200.0, 300.0])
 def test_light_floating_discs_keep_their_water(fluid_case, density):
     """Discs of 0.2 and 0.3 the water's density (a fifth and under a third immersed) heaving
-    for 3 s keep the water within 2e-3 all along: measured 4.2e-4 and 8.5e-4 (3.5e-4 and
-    1.4e-4 at twice the resolution). Before the redistancing took its surface from the fluid only
-    (kernels.surface_may_seed), a zero contour that the filling drew inside the disc was taken
-    for the surface, drifted down to the disc's bottom wall, and the cut cells there read air:
-    they lost 0.43 % and 1.8 %. The half-immersed disc and the box keep 1e-5 either way."""
+    for 3 s keep the water within 2e-3 all along: measured 4.4e-4 and 8.4e-4 (3.9e-4 and
+    1.3e-4 at twice the resolution; 2026-12-01). Before the redistancing took its surface from
+    the fluid only (kernels.surface_may_seed), a zero contour that the filling drew inside the
+    disc was taken for the surface, drifted down to the disc's bottom wall, and the cut cells
+    there read air: they lost 0.43 % and 1.8 %. The half-immersed disc and the box keep 1e-5
+    either way."""
     scene, rec = _floating_disc(fluid_case, density)
     assert rec.failure is None
     v = rec.series["volume"]
@@ -544,8 +546,9 @@ def test_light_floating_discs_keep_their_water(fluid_case, density):
 def test_water_entry_keeps_the_water(fluid_case):
     """The half-density disc dropped from 0.07 m above the surface (its centre at 0.40 m) hits
     the water at 1.2 m/s, throws up a splash and floats: the water is kept within 1 % over 3 s,
-    measured 0.47 % (0.33 % at twice the resolution; most of it while the splash's sheets fall
-    back). Before the redistancing took its surface from the fluid only it lost 5.2 %."""
+    measured 0.41 % (0.37 % at twice the resolution, 2026-12-01; most of it while the splash's
+    sheets fall back). Before the redistancing took its surface from the fluid only it lost
+    5.2 %."""
     scene, rec = _floating_disc(fluid_case, 500.0, height=0.40)
     assert rec.failure is None
     v = rec.series["volume"]
@@ -562,13 +565,13 @@ def test_a_viscous_floating_disc_heaves_as_theory_says_without_the_convective_ex
     so the convective exchange is off on every step (``window_is_wet``: air faces carry
     extrapolated velocities, not momentum), and the run's metadata says so.
 
-    Measured (2026-11-30, dx = 1/64, 3 s): draft error 0.50 %, volume 2e-5, energy growth
-    2.6 %, heave period 0.6141 s (Ursell 0.6352: -3.3 %; inviscid 0.6211, -1.1 % from it),
-    damping ratio 0.1794 against 0.1735 inviscid (+3.4 %). A Stokes layer on the wetted half
+    Measured (2026-12-01, dx = 1/64, 3 s): draft error 0.49 %, volume 2e-5, energy growth
+    2.5 %, heave period 0.6159 s (Ursell 0.6352: -3.0 %; inviscid 0.6211, -0.8 % from it),
+    damping ratio 0.1808 against 0.1738 inviscid (+4.0 %). A Stokes layer on the wetted half
     under the slip of the infinite-frequency flow (2 V cos theta) dissipates as a damper 2 pi R
     rho sqrt(nu omega / 2), which adds 0.0035 to the damping ratio (over 2 (M + A) omega). More
-    viscous, the damping ratio grows about as sqrt(nu): 0.187 / 0.228 / 0.420 at 1e-5 / 1e-4 /
-    1e-3, its rise above the inviscid value 1.2-2.2 times that estimate's (1.7 here)
+    viscous, the damping ratio grows about as sqrt(nu): 0.188 / 0.226 / 0.418 at 1e-5 / 1e-4 /
+    1e-3, its rise above the inviscid value 1.25-2.2 times that estimate's (2.0 here)
     (the estimate leaves out the waterline, where the no-slip wall drags the surface; at 1e-3
     the draft error is 2.1 %). With the exchange forced on through the surface (a throwaway run
     at 1e-3) the air faces gave the disc -0.032 N s over the run (its weight's impulse is 296 N
@@ -823,9 +826,11 @@ def test_energy_lost_against_the_viscous_dissipation(runs):
       body is taken a fraction of a cell away). Before the coupled viscous step weighed each
       face's momentum by its open fraction: 1.081 and 1.043; bound 1.15.
     * A disc (density 2000, radius 0.05 m) sinking 0.3 s in a closed 1 m box: at nu = 1e-3 (Re
-      about 61) the ratio is 3.38 at 48^2 and 1.83 at 96^2 (dt 2.5e-3): the semi-Lagrangian
-      advection's own dissipation dominates, 70 % and 45 % of the loss; at nu = 0.01 (Re 3.5)
-      1.36 and 1.13 (dt 1e-3, 5e-4). With the viscous exchange number beyond its stated limit
+      about 61) the ratio is 4.18 at 48^2 and 2.36 at 96^2 (dt 2.5e-3; 2026-12-01): the
+      semi-Lagrangian advection's own dissipation dominates, 76 % and 58 % of the loss; at nu =
+      0.01 (Re 3.5) 1.30 and 1.19 (dt 1e-3, 5e-4). (Quoted before as 3.38 / 1.83 and 1.36 /
+      1.13, from an earlier coupled step: the code just before the trace took the field's own
+      pose read 4.23 / 2.39 at nu = 1e-3.) With the viscous exchange number beyond its stated limit
       (1.8 at nu = 0.01, dt = 5e-3) the ratio fell to 0.91: viscosity then counts more than was
       lost, so the audit only holds in the stated regime.
 
@@ -856,4 +861,4 @@ kinematic_viscosity = 1e-3
         assert audit["energy_lost"] > 0 and audit["energy_rise_max"] < 0.01
         assert audit["viscous_dissipation_ratio"] > 0.95
         ratios.append(audit["viscous_dissipation_ratio"])
-    assert ratios[0] > 2.5 and ratios[1] < 0.7 * ratios[0]  # measured 3.38, 1.83
+    assert ratios[0] > 2.5 and ratios[1] < 0.7 * ratios[0]  # measured 4.18, 2.36

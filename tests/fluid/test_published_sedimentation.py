@@ -20,19 +20,20 @@ from crosscheck.scene.loader import load_case_text
 
 def test_the_disc_settles_at_the_published_terminal_speed(runs):
     """Measured at the case's grid (d / dx = 12, dt = 0.01333 = 0.16 dx), with the body's
-    exchange of the convection's momentum and moment and the symmetric stress's viscous
-    moment: U = 2.1111, Re 261.0 against 259.5 (+0.59 %; +0.58 % before the case took the
-    coupled multigrid), C_D 1.762 against 1.785. Not the
-    converged value: the grid study (benchmarks/results/sedimentation_convmoment.md) reads
-    -1.25 / +0.58 / +2.14 % at d / dx 8 / 12 / 16 (dt = 0.16 dx), and before the moments
-    +1.41 / +2.12 / +3.08 % at 0.08 dx, still rising with the grid (+6.28 % at 32): released
-    on the axis, the disc keeps the symmetric wake, which drags about 12 % less than the
-    shedding one the published number belongs to (benchmarks/results/wachs_frame.md). The
-    case's 2.5 % holds its own run, not the finer grids; it guards this discretization against
-    regressions, anchored on the published speed. (The case moved from d / dx = 8, where the
-    disc's wandering off the axis is chaotic: -1.09 to -1.91 % as the release moves by 1e-9 to
-    1e-5 d.) Released 1 d off the axis as the benchmark is, the disc settles 1.4-2.0 % slower
-    than the published speed at 12 and 16 cells once the step is small enough
+    exchange of the convection's momentum and moment, the symmetric stress's viscous moment and
+    the trace reading the body's pose at the step's start (2026-12-01): U = 2.1433, Re 265.0
+    against 259.5 (+2.12 %; +0.59 % while the trace clipped against the moved pose), C_D 1.710
+    against 1.785. Not the converged value: on the axis the grid study (benchmarks/results/
+    sedimentation_axis_tracepose.md) reads -0.16 / +2.12 / +3.02 % at d / dx 8 / 12 / 16 (dt =
+    0.16 dx) and +2.85 % at 12 cells and 0.08 dx, still rising with the grid (+6.28 % at 32 cells
+    before the trace's change): released on the axis, the disc keeps the symmetric wake, which
+    drags about 12 % less than the shedding one the published number belongs to
+    (benchmarks/results/wachs_frame.md). The case's 2.5 % holds its own run, not the finer
+    grids; it guards this discretization against regressions, anchored on the published speed.
+    (The case moved from d / dx = 8, where the disc's wandering off the axis was chaotic: -1.09
+    to -1.91 % as the release moved by 1e-9 to 1e-5 d; at 12 cells the same releases read +1.96
+    to +2.11 %.) Released 1 d off the axis as the benchmark is, the disc settles 1.8-1.9 %
+    slower than the published speed at 12 and 16 cells once the step is small enough
     (sedimentation_offaxis_steps12.md and ...16.md); that run is too long for the suite."""
     scene, rec = runs("sedimentation_wachs", "maccormack")
     assert rec.failure is None

@@ -138,22 +138,23 @@ def test_terminal_velocity_beside_mujoco_and_the_published_drag(runs):
 
     * Drag: the C_D that balances the reduced weight at the measured speed against the
       published band of a cylinder in unbounded steady flow at the measured Re
-      (reference/data/cylinder_drag_steady_low_re.csv: 1.63-1.71 at Re 33.6). Measured 2.188
-      at R / dx = 2.4, 28.0 % above the band since the convective exchange gives the body the
+      (reference/data/cylinder_drag_steady_low_re.csv: 1.63-1.71 at Re 33.6). Measured 2.186
+      at R / dx = 2.4, 27.9 % above the band (2026-12-01; 2.188, 28.0 %, before the trace took
+      the field's own pose) since the convective exchange gives the body the
       momentum the semi-Lagrangian trace loses at its wall (22.3 % before it, with the
       weighted viscous step; 23.9 % with the moving-wall remedies before that, 25.2 % before
       them; 22 % before the coupled projection became incremental, whose slip at the body's
-      wall took drag off); 1.914 at R / dx = 4 (15.3 %), 1.828 at 6.4 (11.3 %): converging
+      wall took drag off); 1.911 at R / dx = 4 (15.2 %), 1.828 at 6.4 (11.3 %): converging
       from above at about second order; what stays is mostly the closed box (in a box 10
       diameters wide C_D is 10-11 % higher again; linear in the blockage, 2 C_D(0.05) -
-      C_D(0.10) = 1.641 at 6.4, 2.0 % above the band), the 5 ms step (halved at R / dx = 4:
+      C_D(0.10) = 1.640 at 6.4, 1.9 % above the band), the 5 ms step (halved at R / dx = 4:
       C_D -0.5 %) and the unfinished approach (benchmarks/results/settling_disc.md,
       settling_disc_dt.md). The limit is the case grid's measured error with a margin, 32 %.
-    * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.45 %
+    * Force balance: at terminal speed the fluid's force on the disc carries its weight: 0.50 %
       (the speed still rises by ~2 % over the window: the 2D wake keeps growing).
     * Beside MuJoCo (closed forms of its models for the mapped cylinder, which its runs match to
       1e-12): MuJoCo settles at 1.304 (ellipsoid) / 1.246 m/s (inertia box); the resolved fluid
-      at 0.839, 36 % / 33 % slower. The published band alone predicts 25-27 % / 22-24 %
+      at 0.840, 36 % / 33 % slower. The published band alone predicts 25-27 % / 22-24 %
       (U = sqrt((rho_s / rho - 1) pi R g / C_D)): most of the gap is MuJoCo's constant C_D
       (0.906 / 0.993 at its own terminal speed, viscous term included), the rest this grid's
       12-14 % of extra speed deficit (8-9 % before the convective exchange)."""
