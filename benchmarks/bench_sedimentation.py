@@ -254,7 +254,11 @@ def motion_run(cells: int, step: float, integrator: str = "maccormack") -> dict:
     force = np.asarray(rec.series["body_force_y.disc"])[window]
     driven = float(np.mean(force)) / (0.5 * 1000.0 * float(np.mean(u)) ** 2 * D)
     return {"run": f"{cells}:{step:g}:{integrator}", "cells_per_diameter": cells, "step": step,
-            "integrator": integrator, "fixed_cd": fixed, "held_cd": held["drag_coefficient"],
+            "integrator": integrator,
+            # the pose a trace clips against (FluidState.step): the body's at the step's start
+            # since 2026-12-01; rows kept from before read "moved" (where begin_step put it)
+            "trace_pose": None if integrator == "central" else "start",
+            "fixed_cd": fixed, "held_cd": held["drag_coefficient"],
             "held_third_law_gap": held["third_law_gap"], "driven_cd": driven,
             "driven_speed": float(np.mean(u)), "driven_speed_change": float(u[-1] / u[0] - 1.0),
             # the steps taken (the CFL limit cuts the largest step where the flow is fast)
@@ -276,12 +280,18 @@ def motion_markdown(rows: list[dict]) -> str:
              "held discs over 8-12 s, the driven one over 4-11 s, so the three differ by their "
              "start and window as well; what the study reads is each one's change with the step. "
              "The mean step each run took (the CFL limit cuts the largest step where the flow is "
-             "fast): '-' in rows measured before it was recorded. "
+             "fast): '-' in rows measured before it was recorded. The trace's pose: the body's "
+             "pose a semi-Lagrangian or MacCormack trace clips its paths against, `start` (the "
+             "step's start, the pose the field belongs to; the solver since 2026-12-01) or "
+             "`moved` (where the step moves the body, the solver before; those rows are kept "
+             "for the comparison, their runs named `...:moved`); `central` has no trace, its "
+             "rows hold for both. "
              "Wall: the three runs together, timed beside other work (not a speed figure).",
-             "", "| run | d/dx | step | step / dx | advection | mean step taken (fixed / held / "
-             "driven) | fixed C_D | held C_D | held gap | driven C_D | driven speed change "
-             "| wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in sorted(rows, key=lambda r: (r["integrator"], r["cells_per_diameter"], -r["step"])):
+             "", "| run | d/dx | step | step / dx | advection | trace's pose | mean step taken "
+             "(fixed / held / driven) | fixed C_D | held C_D | held gap | driven C_D | driven "
+             "speed change | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in sorted(rows, key=lambda r: (r["integrator"], r.get("trace_pose") or "",
+                                         r["cells_per_diameter"], -r["step"])):
         if r.get("failure"):
             lines.append(f"| {r['run']} | failed: {r['failure']} |")
             continue
@@ -289,7 +299,8 @@ def motion_markdown(rows: list[dict]) -> str:
         taken = " / ".join(_f(taken.get(k), "{:.4f}") for k in ("fixed", "held", "driven"))
         lines.append(f"| {r['run']} | {r['cells_per_diameter']} | {r['step']:g} | "
                      f"{r['step'] * r['cells_per_diameter']:.2f} | {r['integrator']} | "
-                     f"{taken} | {r['fixed_cd']:.4f} | {r['held_cd']:.4f} | "
+                     f"{r.get('trace_pose') or '-'} | {taken} | {r['fixed_cd']:.4f} | "
+                     f"{r['held_cd']:.4f} | "
                      f"{r['held_third_law_gap']:+.2%} | {r['driven_cd']:.4f} | "
                      f"{r['driven_speed_change']:+.2%} | {r['wall_s']:.0f} |")
     return "\n".join(lines) + "\n"
