@@ -255,9 +255,10 @@ def motion_run(cells: int, step: float, integrator: str = "maccormack") -> dict:
     driven = float(np.mean(force)) / (0.5 * 1000.0 * float(np.mean(u)) ** 2 * D)
     return {"run": f"{cells}:{step:g}:{integrator}", "cells_per_diameter": cells, "step": step,
             "integrator": integrator,
-            # the pose a trace clips against (FluidState.step): the body's at the step's start
-            # since 2026-12-01; rows kept from before read "moved" (where begin_step put it)
-            "trace_pose": None if integrator == "central" else "start",
+            # the body's pose the advection reads the step's starting field on (a trace's
+            # clipping, the central term's faces; FluidState.step): the step's start since
+            # 2026-12-01; rows kept from before read "moved" (where begin_step put it)
+            "trace_pose": "start",
             "fixed_cd": fixed, "held_cd": held["drag_coefficient"],
             "held_third_law_gap": held["third_law_gap"], "driven_cd": driven,
             "driven_speed": float(np.mean(u)), "driven_speed_change": float(u[-1] / u[0] - 1.0),
@@ -280,14 +281,15 @@ def motion_markdown(rows: list[dict]) -> str:
              "held discs over 8-12 s, the driven one over 4-11 s, so the three differ by their "
              "start and window as well; what the study reads is each one's change with the step. "
              "The mean step each run took (the CFL limit cuts the largest step where the flow is "
-             "fast): '-' in rows measured before it was recorded. The trace's pose: the body's "
-             "pose a semi-Lagrangian or MacCormack trace clips its paths against, `start` (the "
-             "step's start, the pose the field belongs to; the solver since 2026-12-01) or "
-             "`moved` (where the step moves the body, the solver before; those rows are kept "
-             "for the comparison, their runs named `...:moved`); `central` has no trace, its "
-             "rows hold for both. "
+             "fast): '-' in rows measured before it was recorded. The advection's pose: the "
+             "body's pose the advection reads the step's starting field on (the pose a "
+             "semi-Lagrangian or MacCormack trace clips its paths against, the faces the "
+             "central term is computed on), `start` (the step's start, the pose the field "
+             "belongs to; the solver since 2026-12-01) or `moved` (where the step moves the "
+             "body, the solver before; those rows are kept for the comparison, their runs "
+             "named `...:moved`). "
              "Wall: the three runs together, timed beside other work (not a speed figure).",
-             "", "| run | d/dx | step | step / dx | advection | trace's pose | mean step taken "
+             "", "| run | d/dx | step | step / dx | advection | advection's pose | mean step taken "
              "(fixed / held / driven) | fixed C_D | held C_D | held gap | driven C_D | driven "
              "speed change | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: (r["integrator"], r.get("trace_pose") or "",

@@ -11,10 +11,11 @@ One coupled step (``FluidState.step`` calls the pieces in this order):
    mass by ``dt V``, its angle by ``dt omega``), and the solid boundary is rebuilt at the new pose:
    the body's cut cells (exact face fractions, distances, areas, :mod:`cutcell`, computed in a
    window around the body) joined with the scene's static boundary, with the body's rigid
-   velocity on every face and sample it covers or cuts. Redistancing, the face states, the
-   central scheme's convection and everything after the advection use this boundary; a trace
-   (semi-Lagrangian, MacCormack) reads the step's starting field on the boundary that field
-   belongs to, ``previous`` (the body's pose and velocity at the step's start).
+   velocity on every face and sample it covers or cuts. Redistancing, the face states and
+   everything after the advection use this boundary; the advection (a trace's clipping and
+   the solid's velocity it reads, the central scheme's term) reads the step's starting field
+   on the boundary that field belongs to, ``previous`` (the body's pose and velocity at the
+   step's start).
 2. ``predict(dt)``: gravity on the body, ``V* = V + g dt``, and the viscous exchange predicted
    from the last step's (taken back in 3, so only the wall's velocity in the viscous step
    changes); with a viscous fluid the previous pressure then acts on fluid and body

@@ -286,18 +286,19 @@ class FluidState:
         field_bnd = self.boundary           # the solid the field at the step's start obeys
         bnd = self.boundary = solid
         t0 = time.perf_counter()
-        # A trace (semi-Lagrangian, MacCormack) reads the field at the step's start, so it
-        # clips its paths against, and reads the solid's velocity inside, the solid that field
-        # belongs to: a coupled body's pose and velocity at the start of the step, not where
-        # begin_step has just moved it (a face the body uncovers then reads the body's
-        # velocity, as the fluid there had it). Measured on the disc driven at Re ~ 260, 12
-        # cells per diameter (`maccormack`): C_D 1.741 / 1.702 / 1.687 at the steps 0.02 /
-        # 0.01 / 0.005 against 1.825 / 1.737 / 1.703 with the moved pose, the motion's error
-        # in the step halved (benchmarks/results/sedimentation_motion.md; docs/fluid.md, "The
-        # trace on the pose its field belongs to"). The central scheme's term and everything
-        # after the advection use the moved pose.
-        trace_bnd = (field_bnd if coupling is not None and field_bnd.cut
-                     and self.scheme.advection != "central" else bnd)
+        # The advection reads the field at the step's start, so it reads it on the solid that
+        # field belongs to: a coupled body's pose and velocity at the start of the step, not
+        # where begin_step has just moved it. A trace (semi-Lagrangian, MacCormack) clips its
+        # paths against that body and reads its velocity inside it (a face the body uncovers
+        # then reads the body's velocity, as the fluid there had it); the central scheme's
+        # term div(u u) is the start field's on the faces it had then. Measured on the disc
+        # driven at Re ~ 260, 12 cells per diameter: `maccormack` C_D 1.741 / 1.702 / 1.687 at
+        # the steps 0.02 / 0.01 / 0.005 against 1.825 / 1.737 / 1.703 with the moved pose (the
+        # motion's error in the step halved); `central` 1.575 / 1.577 at 0.02 / 0.01 against
+        # 1.679 / 1.630 (the motion's error gone; benchmarks/results/sedimentation_motion.md,
+        # docs/fluid.md, "The advection on the pose its field belongs to"). Everything after
+        # the advection uses the moved pose.
+        trace_bnd = field_bnd if coupling is not None and field_bnd.cut else bnd
         if trace_bnd.cut:
             # advection reads the solid's velocity at the samples inside it (the projection
             # moves a cut face whose sample is inside; that value is the open part's mean
@@ -323,7 +324,7 @@ class FluidState:
             self.phi = self._advect(self.phi, K.OFF_PHI, (0.5, 0.5), args, mac, None,
                                     act_phi, self.phi)
         if self.prescribed is None and self.scheme.advection == "central":
-            un, vn = self._convect(up, vp, dt)
+            un, vn = self._convect(up, vp, dt, trace_bnd)
         elif self.prescribed is None:
             un = self._advect(up, K.OFF_UPAD, (0.0, 0.5), args, mac, "u", act_u, self.zero_u)
             vn = self._advect(vp, K.OFF_VPAD, (0.5, 0.0), args, mac, "v", act_v, self.zero_v)
@@ -354,7 +355,7 @@ class FluidState:
             # test_coupling.py kept 0.4773 of its speed so, 0.4828 without, against about 0.495
             # from the added mass)
             if coupling.window_is_wet(self.ustate, self.vstate):
-                na, nb = self._convection_all(up, vp)
+                na, nb = self._convection_all(up, vp, bnd)
                 coupling.convective_exchange(self.u, self.v, un, vn, na, nb, dt)
             else:
                 coupling.surface_skips += 1
@@ -494,7 +495,7 @@ class FluidState:
         self.last_iterations = its
         return {"iterations": its, "escaped": escaped}
 
-    def _convect(self, up: np.ndarray, vp: np.ndarray, dt: float):
+    def _convect(self, up: np.ndarray, vp: np.ndarray, dt: float, start: SolidBoundary):
         """``u - dt div(u u)`` by Adams-Bashforth 2 with variable steps (forward Euler on the
         first step): ``(1 + r/2) N^n - (r/2) N^(n-1)``, ``r = dt / dt_prev``. A steady state is
         then exactly the discrete steady equations, whatever the step.
@@ -507,7 +508,7 @@ class FluidState:
         term: forward Euler there."""
         coupled = self.coupling is not None
         if coupled:
-            na, nb = self._convection_all(up, vp)
+            na, nb = self._convection_all(up, vp, start)
         else:
             na = np.empty(self.u.shape)
             nb = np.empty(self.v.shape)
@@ -532,12 +533,14 @@ class FluidState:
         self.dt_prev = dt
         return self.u - dt * cu, self.v - dt * cv
 
-    def _convection_all(self, up: np.ndarray, vp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _convection_all(self, up: np.ndarray, vp: np.ndarray,
+                        bnd: SolidBoundary) -> tuple[np.ndarray, np.ndarray]:
         """The central convective term on the fluid's faces and on those inside the coupled
-        body (from the body's velocity at its samples, as ``up``, ``vp`` have it): summed over
-        any set of faces (the band ``Coupling.convective_exchange`` balances) it telescopes to
-        the momentum flux across the set's edge."""
-        bnd = self.boundary
+        body at its pose in ``bnd`` (from the body's velocity at its samples, as ``up``, ``vp``
+        have it): summed over any set of faces that all have a term (the band
+        ``Coupling.convective_exchange`` balances) it telescopes to the momentum flux across
+        the set's edge. The central scheme's own term marks the body at the step's start; the
+        estimate after a trace at the moved pose (as measured in docs/fluid.md)."""
         us = np.where(bnd.u_dist < 0.0, FLUID, self.ustate).astype(self.ustate.dtype)
         vs = np.where(bnd.v_dist < 0.0, FLUID, self.vstate).astype(self.vstate.dtype)
         na = np.empty(self.u.shape)
