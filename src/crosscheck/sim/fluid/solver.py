@@ -283,7 +283,7 @@ class FluidState:
             timers["coupling"] = timers.get("coupling", 0.0) + time.perf_counter() - tc
         elif solid is None:
             solid = self._ramped(self.static_boundary, self.time + dt)
-        field_bnd = self.boundary           # the solid the field at the step's start obeys
+        start_bnd = self.boundary     # the solid of the step's start, which the field obeys
         bnd = self.boundary = solid
         t0 = time.perf_counter()
         # The advection reads the field at the step's start, so it reads it on the solid that
@@ -298,19 +298,19 @@ class FluidState:
         # 1.679 / 1.630 (the motion's error gone; benchmarks/results/sedimentation_motion.md,
         # docs/fluid.md, "The advection on the pose its field belongs to"). Everything after
         # the advection uses the moved pose.
-        trace_bnd = field_bnd if coupling is not None and field_bnd.cut else bnd
-        if trace_bnd.cut:
+        advect_bnd = start_bnd if coupling is not None and start_bnd.cut else bnd
+        if advect_bnd.cut:
             # advection reads the solid's velocity at the samples inside it (the projection
             # moves a cut face whose sample is inside; that value is the open part's mean
             # flux, not a velocity to carry the fluid with: measured on the dam break over a
             # block, it doubled the volume error, 1.5 % against 0.6 %)
-            up, vp = self.pad(np.where(trace_bnd.u_dist < 0.0, trace_bnd.u_solid, self.u),
-                              np.where(trace_bnd.v_dist < 0.0, trace_bnd.v_solid, self.v))
+            up, vp = self.pad(np.where(advect_bnd.u_dist < 0.0, advect_bnd.u_solid, self.u),
+                              np.where(advect_bnd.v_dist < 0.0, advect_bnd.v_solid, self.v))
         else:
             up, vp = self.pad(self.u, self.v)
-        dist = trace_bnd.c_dist if trace_bnd.cut else self.no_dist
-        args = (up, vp, dt, dx, self.lx, self.ly, trace_bnd.cells, trace_bnd.has_cells, dist,
-                trace_bnd.cut)
+        dist = advect_bnd.c_dist if advect_bnd.cut else self.no_dist
+        args = (up, vp, dt, dx, self.lx, self.ly, advect_bnd.cells, advect_bnd.has_cells, dist,
+                advect_bnd.cut)
         mac = self.scheme.advection == "maccormack"
         if self.has_surface:
             # only the band can change sign or be read by the next steps (|u| dt <= cfl_limit dx)
@@ -324,7 +324,7 @@ class FluidState:
             self.phi = self._advect(self.phi, K.OFF_PHI, (0.5, 0.5), args, mac, None,
                                     act_phi, self.phi)
         if self.prescribed is None and self.scheme.advection == "central":
-            un, vn = self._convect(up, vp, dt, trace_bnd)
+            un, vn = self._convect(up, vp, dt, advect_bnd)
         elif self.prescribed is None:
             un = self._advect(up, K.OFF_UPAD, (0.0, 0.5), args, mac, "u", act_u, self.zero_u)
             vn = self._advect(vp, K.OFF_VPAD, (0.5, 0.0), args, mac, "v", act_v, self.zero_v)
