@@ -200,15 +200,22 @@ def held_markdown(rows: list[dict]) -> str:
 def held_study(specs: list[str]) -> None:
     """``--held cells:step[:integrator] ...``: rows added to (or replaced in)
     ``sedimentation_held.{json,md}``."""
-    parsed = _parse_cells_step("--held", specs)
-    path = OUT / f"{STEM}_held.json"
-    rows = json.loads(path.read_text())["runs"] if path.exists() else []
+    _study("held", _parse_cells_step("--held", specs), held_run, held_markdown)
+
+
+def _study(name: str, parsed: list[tuple], run, markdown) -> None:
+    """Run each ``run(*args)`` and add its row to (or replace it in)
+    ``sedimentation_<name>.{json,md}``, written after every run (a long study survives a stop).
+    The file is read again before each write: two studies (say one per scheme) may run side by
+    side."""
+    path = OUT / f"{STEM}_{name}.json"
     for args in parsed:
-        row = held_run(*args)
+        row = run(*args)
+        rows = json.loads(path.read_text())["runs"] if path.exists() else []
         rows = [r for r in rows if r["run"] != row["run"]] + [row]
         OUT.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps({"runs": rows, "machine": platform.machine()}, indent=2))
-        (OUT / f"{STEM}_held.md").write_text(held_markdown(rows))
+        (OUT / f"{STEM}_{name}.md").write_text(markdown(rows))
         print(json.dumps(row), flush=True)
 
 
@@ -258,7 +265,7 @@ def motion_run(cells: int, step: float, integrator: str = "maccormack") -> dict:
             # the body's pose the advection reads the step's starting field on (a trace's
             # clipping, the central term's faces; FluidState.step): the step's start since
             # 2026-12-01; rows kept from before read "moved" (where begin_step put it)
-            "trace_pose": "start",
+            "advection_pose": "start",
             "fixed_cd": fixed, "held_cd": held["drag_coefficient"],
             "held_third_law_gap": held["third_law_gap"], "driven_cd": driven,
             "driven_speed": float(np.mean(u)), "driven_speed_change": float(u[-1] / u[0] - 1.0),
@@ -292,7 +299,7 @@ def motion_markdown(rows: list[dict]) -> str:
              "", "| run | d/dx | step | step / dx | advection | advection's pose | mean step taken "
              "(fixed / held / driven) | fixed C_D | held C_D | held gap | driven C_D | driven "
              "speed change | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in sorted(rows, key=lambda r: (r["integrator"], r.get("trace_pose") or "",
+    for r in sorted(rows, key=lambda r: (r["integrator"], r.get("advection_pose") or "",
                                          r["cells_per_diameter"], -r["step"])):
         if r.get("failure"):
             lines.append(f"| {r['run']} | failed: {r['failure']} |")
@@ -301,7 +308,7 @@ def motion_markdown(rows: list[dict]) -> str:
         taken = " / ".join(_f(taken.get(k), "{:.4f}") for k in ("fixed", "held", "driven"))
         lines.append(f"| {r['run']} | {r['cells_per_diameter']} | {r['step']:g} | "
                      f"{r['step'] * r['cells_per_diameter']:.2f} | {r['integrator']} | "
-                     f"{r.get('trace_pose') or '-'} | {taken} | {r['fixed_cd']:.4f} | "
+                     f"{r.get('advection_pose') or '-'} | {taken} | {r['fixed_cd']:.4f} | "
                      f"{r['held_cd']:.4f} | "
                      f"{r['held_third_law_gap']:+.2%} | {r['driven_cd']:.4f} | "
                      f"{r['driven_speed_change']:+.2%} | {r['wall_s']:.0f} |")
@@ -324,16 +331,7 @@ def _parse_cells_step(flag: str, specs: list[str]) -> list[tuple]:
 def motion_study(specs: list[str]) -> None:
     """``--motion cells:step[:integrator] ...``: rows added to (or replaced in)
     ``sedimentation_motion.{json,md}``."""
-    path = OUT / f"{STEM}_motion.json"
-    for args in _parse_cells_step("--motion", specs):
-        row = motion_run(*args)
-        # read again before writing: two studies (say one per scheme) may run side by side
-        rows = json.loads(path.read_text())["runs"] if path.exists() else []
-        rows = [r for r in rows if r["run"] != row["run"]] + [row]
-        OUT.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"runs": rows, "machine": platform.machine()}, indent=2))
-        (OUT / f"{STEM}_motion.md").write_text(motion_markdown(rows))
-        print(json.dumps(row), flush=True)
+    _study("motion", _parse_cells_step("--motion", specs), motion_run, motion_markdown)
 
 
 def parse_run(spec: str) -> dict:

@@ -298,7 +298,7 @@ class FluidState:
         # 1.679 / 1.630 (the motion's error gone; benchmarks/results/sedimentation_motion.md,
         # docs/fluid.md, "The advection on the pose its field belongs to"). Everything after
         # the advection uses the moved pose.
-        advect_bnd = start_bnd if coupling is not None and start_bnd.cut else bnd
+        advect_bnd = start_bnd if coupling is not None else bnd
         if advect_bnd.cut:
             # advection reads the solid's velocity at the samples inside it (the projection
             # moves a cut face whose sample is inside; that value is the open part's mean
