@@ -19,23 +19,15 @@ from crosscheck.scene.loader import load_case_text
 
 
 def test_the_disc_settles_at_the_published_terminal_speed(runs):
-    """Measured at the case's grid (d / dx = 12, dt = 0.01333 = 0.16 dx), with the body's
-    exchange of the convection's momentum and moment, the symmetric stress's viscous moment and
-    the trace reading the body's pose at the step's start (2026-12-01): U = 2.1433, Re 265.0
-    against 259.5 (+2.12 %; +0.59 % while the trace clipped against the moved pose), C_D 1.710
-    against 1.785. Not the converged value: on the axis the grid study (benchmarks/results/
-    sedimentation_axis_tracepose.md) reads -0.16 / +2.12 / +3.02 % at d / dx 8 / 12 / 16 (dt =
-    0.16 dx) and +2.85 % at 12 cells and 0.08 dx, still rising with the grid (+6.28 % at 32 cells
-    before the trace's change): released on the axis, the disc keeps the symmetric wake, which
-    drags about 12 % less than the shedding one the published number belongs to
-    (benchmarks/results/wachs_frame.md). The case's 2.5 % holds its own run, not the finer
-    grids; it guards this discretization against regressions, anchored on the published speed.
-    (The case moved from d / dx = 8, where the disc's wandering off the axis was chaotic: -1.09
-    to -1.91 % as the release moved by 1e-9 to 1e-5 d; at 12 cells the same releases read +1.96
-    to +2.11 %.) Released 1 d off the axis as the benchmark is, the disc settles 1.8-1.9 %
-    slower than the published speed at 12 and 16 cells once the step is small enough, 1.35 % at
-    24 cells (sedimentation_offaxis_steps12.md, ...16.md, ...24.md); that run is too long for
-    the suite."""
+    """Released 1 d off the axis as the benchmark releases it, at the case's grid (d / dx = 12,
+    dt = 0.01333 = 0.16 dx; measured 2026-12-01): U = 2.0514, Re 253.6 against 259.5 (-2.26 %),
+    C_D 1.866 against 1.785; released 1e-9 / 1e-7 d farther off, -2.30 / -2.28 %. The disc
+    reaches the axis, sheds and swings about it (0.32 d at most in the window), the state the
+    published number belongs to. The finer grids and steps read 1.3-1.9 % slow
+    (sedimentation_offaxis_steps12.md, ...16.md, ...24.md): the case's 2.5 % is what this grid
+    reaches, not a converged agreement. (Released on the axis, the case until 2026-12-01, the
+    disc kept the symmetric wake, which drags about 12 % less: +2.12 % at this grid, and more on
+    finer ones; benchmarks/results/wachs_frame.md.)"""
     scene, rec = runs("sedimentation_wachs", "maccormack")
     assert rec.failure is None
     m = fluid_metrics(scene, rec)
@@ -49,8 +41,11 @@ def test_the_disc_settles_at_the_published_terminal_speed(runs):
     # balance to 0.12 %, the rounding of Re to four figures: 2.4e-3 in C_D at most)
     assert m["drag_coefficient_error"] == pytest.approx(
         abs((1.0 + m["terminal_velocity_error"]) ** -2 - 1.0), abs=2.5e-3)
-    # terminal: the window is ~15 d of travel, ending clear of the bottom
-    assert m["window_travel"] > 12.0 and m["bottom_clearance"] > 2.0
+    # terminal: the window is ~25 d of travel, ending clear of the bottom
+    assert m["window_travel"] > 20.0 and m["bottom_clearance"] > 2.0
+    # the benchmark's state: the disc has left its release line (1 d off the axis) and swings
+    # about the axis (measured 0.32 d at most, 0.18 d on average over the window)
+    assert 0.05 < m["centreline_offset_mean"] < m["centreline_offset"] < 0.6
 
 
 def _scene(fluid_case, **fluid):
@@ -60,7 +55,7 @@ def _scene(fluid_case, **fluid):
 
 
 @pytest.mark.parametrize("change", [
-    {"domain": (5.0, 30.0)},            # w / d = 5: not the benchmark's channel
+    {"domain": (5.0, 45.0)},            # w / d = 5: not the benchmark's channel
     {"kinematic_viscosity": 0.01},      # another Galileo number
     {"density": 1200.0},                # rho_s / rho = 1.25: not published
 ])
