@@ -188,12 +188,13 @@ def start_from(st, state: dict) -> None:
 
 
 def period_maxima(t: np.ndarray, cd: np.ndarray, cl: np.ndarray) -> list[list[float]]:
-    """[start time, lift maximum, drag maximum] of every whole lift period (between upward zero
-    crossings of the lift about its mean over the run's second half), maxima refined by
-    :func:`peak`."""
+    """[start time, lift maximum, drag maximum, lift minimum] of every whole lift period
+    (between upward zero crossings of the lift about its mean over the run's second half),
+    extrema refined by :func:`peak`. The minimum (the lift's other extreme, -1.0213 in the
+    FEATFLOW reference series) says whether the whole cycle, not only its top, converges."""
     x = cl - cl[cl.shape[0] // 2:].mean()
     up = np.flatnonzero((x[:-1] < 0.0) & (x[1:] >= 0.0))
-    return [[float(t[i]), peak(cl[i:j + 1]), peak(cd[i:j + 1])]
+    return [[float(t[i]), peak(cl[i:j + 1]), peak(cd[i:j + 1]), -peak(-cl[i:j + 1])]
             for i, j in zip(up, up[1:], strict=False)]
 
 
@@ -261,7 +262,25 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
         entry["period_maxima"] = period_maxima(np.asarray(rec.t), cd, cl)
         entry["lift_max_aitken"] = aitken([p[1] for p in entry["period_maxima"]])
         entry["drag_max_aitken"] = aitken([p[2] for p in entry["period_maxima"]])
+        entry["lift_min_aitken"] = aitken([p[3] for p in entry["period_maxima"]])
     return entry
+
+
+def _target(case: str, q: str) -> float:
+    """The value a quantity's error is read against: the reference table's precise value (for
+    2D-2 FEATFLOW's reference computation since 2026-12-01), else the interval's centre."""
+    return dfg_reference("2D-1" if case == "2d1" else "2D-2")[0][q].target
+
+
+def run_error(r: dict, q: str) -> float | None:
+    """A run's relative error in ``q`` against the table's current target, recomputed from the
+    stored value (rows recorded before 2026-12-01 stored their 2D-2 errors against the 1996
+    interval's centre)."""
+    v = r["metrics"].get(q)
+    if v is None or not math.isfinite(v):
+        return v
+    t = _target(r["case"], q)
+    return abs(v - t) / abs(t)
 
 
 def observed_orders(runs: list[dict], case: str) -> list[dict]:
@@ -271,8 +290,8 @@ def observed_orders(runs: list[dict], case: str) -> list[dict]:
     for a, b in zip(runs, runs[1:], strict=False):
         row = {"from": a["cells_per_diameter"], "to": b["cells_per_diameter"]}
         for q in QUANTITIES[case]:
-            ea = a["metrics"].get(f"{q}_error")
-            eb = b["metrics"].get(f"{q}_error")
+            ea = run_error(a, q)
+            eb = run_error(b, q)
             ok = ea and eb and math.isfinite(ea) and math.isfinite(eb) and ea > 0 and eb > 0
             row[q] = (math.log(ea / eb) / math.log(b["cells_per_diameter"]
                                                    / a["cells_per_diameter"])) if ok else None
@@ -416,7 +435,7 @@ def write_markdown(data: dict, path: Path) -> None:
             m = r["metrics"]
             cells = []
             for q in qs:
-                v, e = m.get(q), m.get(f"{q}_error")
+                v, e = m.get(q), run_error(r, q)
                 inside = m.get(f"{q}_interval_miss") == 0.0
                 cells.append("-" if v is None else
                              f"{v:.5g} ({100 * e:.2f} %{', in' if inside else ''})")
@@ -429,8 +448,10 @@ def write_markdown(data: dict, path: Path) -> None:
         lines += ["", "Published: " + ", ".join(
             f"{q} {refs[q].lower:g}-{refs[q].upper:g}"
             + ("" if refs[q].reference is None else f" (reference {refs[q].reference:.10g})")
-            for q in qs) + ". Errors are relative to the reference value (2D-1) or to the "
-            "interval's centre (2D-2); ', in' marks a value inside the published interval.", ""]
+            for q in qs) + ". Errors are relative to the reference value (2D-1: the FEATFLOW "
+            "page's; 2D-2: FEATFLOW's reference computation, Q2 on level 6, dt 1/1600, read from "
+            "its force series by `benchmarks/featflow_reference.py`; its lift maximum lies below "
+            "the 1996 interval); ', in' marks a value inside the published interval.", ""]
         orders = observed_orders(runs, case)
         if orders:
             lines += ["Observed order between successive grids (from the errors):", "",
@@ -518,23 +539,40 @@ def _restart_lines(all_runs: list[dict], case_runs: list[dict]) -> list[str]:
              "`change` the last period's change. The case's own run on the same grid (from rest, "
              "10 s, full channel) where there is one:", "",
              "| cells/D | channel (m) | grid | from | run (s) | periods | c_L max last | change "
-             "| c_L max limit | c_D max last | c_D max limit | St | case's run c_L max | "
-             "ms/step | wall s |", "|---" * 15 + "|"]
+             "| c_L max limit (vs reference) | c_D max last | c_D max limit (vs reference) | St "
+             "(vs reference) | c_L min limit | case's run c_L max | ms/step | wall s |",
+             "|---" * 16 + "|"]
     for r in rs:
         pm = r.get("period_maxima") or [[0.0, math.nan, math.nan]] * 2
         last_l, last_d = pm[-1][1], pm[-1][2]
         change = pm[-1][1] - pm[-2][1] if len(pm) > 1 else math.nan
         lim_l, lim_d = r.get("lift_max_aitken"), r.get("drag_max_aitken")
+        # the lift minimum: recorded since 2026-12-01 (the 4th entry of each period)
+        lim_m = r.get("lift_min_aitken")
         own = full.get(r["cells_per_diameter"])
         lines.append(
             f"| {r['cells_per_diameter']} | {_length(r):.3g} | {r['grid'][0]} x {r['grid'][1]} "
             f"| {_origin(r)} | {r['duration']:g} | {len(pm)} | {last_l:.5f} | {change:+.1e} | "
-            + ("-" if lim_l is None else f"{lim_l:.5f}") + f" | {last_d:.5f} | "
-            + ("-" if lim_d is None else f"{lim_d:.5f}")
-            + f" | {_fmt(r['metrics'].get('strouhal_number'), '.4f')} | "
+            + _vs_reference(lim_l, "lift_coefficient_max") + f" | {last_d:.5f} | "
+            + _vs_reference(lim_d, "drag_coefficient_max")
+            + " | " + _vs_reference(r["metrics"].get("strouhal_number"), "strouhal_number", 4)
+            + " | " + ("-" if lim_m is None else f"{lim_m:.5f}") + " | "
             + ("-" if own is None else f"{own['metrics']['lift_coefficient_max']:.5f}")
             + f" | {r['ms_per_step']:.0f} | {r['wall_s']:.0f} |")
+    ref = dfg_reference("2D-2")[0]
+    lines += ["", "Reference (FEATFLOW's computation, Q2 on level 6, dt 1/1600; the reference "
+              f"table): c_L max {ref['lift_coefficient_max'].target:g}, c_D max "
+              f"{ref['drag_coefficient_max'].target:g}, St {ref['strouhal_number'].target:g}, "
+              "c_L min -1.02129 (`benchmarks/featflow_reference.py`)."]
     return lines + [""]
+
+
+def _vs_reference(v: float | None, q: str, digits: int = 5) -> str:
+    """A 2D-2 value and its relative difference from the reference computation's."""
+    if v is None or not math.isfinite(v):
+        return "-"
+    t = _target("2d2", q)
+    return f"{v:.{digits}f} ({100 * (v - t) / t:+.2f} %)"
 
 
 def _fmt(v: float | None, spec: str) -> str:

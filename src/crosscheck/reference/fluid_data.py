@@ -12,8 +12,9 @@ columns and those lines, so reports can cite where the numbers come from.
   was checked against and the points left out (two misprints, in Re = 3200 and 10000).
 * ``schafer_turek_1996``: the DFG benchmark, channel flow past a cylinder (Schafer & Turek 1996):
   the published intervals of drag, lift, pressure difference (2D-1, Re = 20) and maximum drag,
-  maximum lift, Strouhal number (2D-2, Re = 100), with the FEATFLOW reference values of 2D-1
-  (:func:`dfg_reference`); its header names the copies it was checked against.
+  maximum lift, Strouhal number (2D-2, Re = 100), with the FEATFLOW reference values of both
+  (2D-2: FEATFLOW's reference computation, whose lift maximum lies below the 1996 interval;
+  :func:`dfg_reference`); its header names the copies it was checked against.
 * ``ursell_1949``: heave added mass and damping of a half-immersed circular cylinder in deep
   water against ``omega^2 R / g`` (Ursell 1949; a public computation of his method, checked
   against a fit to Faltinsen's graph: the file's header), behind :func:`floating_circle_heave`.
