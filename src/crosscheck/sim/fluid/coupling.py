@@ -421,8 +421,9 @@ class Coupling:
         omega a^2 / nu = 200, 128 cells, after 0.4 s: the fluid's gain of angular momentum
         against the body's loss 0.993 (`central` and `maccormack`) with the moment, 1.049 and
         1.025 without (the convection having given the fluid 5.6 and 3.2 % of the body's loss);
-        at Re 260 the settling disc of `sedimentation_wachs` wanders less from the axis and
-        reads -1.25 % of the published speed instead of -2.34 % (docs/fluid.md). ``u_old``,
+        at Re 260 the settling disc then released on the axis (`sedimentation_wachs` at 8
+        cells, 2026-11-30) wandered less from it and read -1.25 % of the published speed
+        instead of -2.34 % (docs/fluid.md). ``u_old``,
         ``v_old``: the field at the start of the step (on ``previous``, the last step's
         boundary); ``u_new``, ``v_new``: after the convection, the slivers kept."""
         g, bnd, old = self.geometry, self.boundary, self.previous
