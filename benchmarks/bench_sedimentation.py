@@ -55,7 +55,7 @@ import numpy as np
 from bench_sedimentation_frame import record_held, run_table  # shared with the frame benchmark
 
 from crosscheck.compare.fluid_metrics import fluid_metrics
-from crosscheck.reference.fluid_data import wachs_sedimentation
+from crosscheck.reference.fluid_data import wachs_path_offsets, wachs_sedimentation
 from crosscheck.scene.loader import load_case_text
 from crosscheck.sim.fluid.run import FluidRun
 
@@ -67,7 +67,8 @@ NU = 0.008088
 KEYS = ("terminal_velocity", "terminal_velocity_reference", "terminal_velocity_error",
         "terminal_reynolds", "drag_coefficient", "drag_coefficient_reference",
         "drag_coefficient_error", "terminal_velocity_unsteadiness", "window_travel",
-        "bottom_clearance", "centreline_offset", "centreline_offset_mean", "energy_lost",
+        "bottom_clearance", "centreline_offset", "centreline_offset_mean",
+        "centreline_offset_reference", "centreline_offset_mean_reference", "energy_lost",
         "viscous_dissipation_ratio")
 
 
@@ -465,10 +466,27 @@ def markdown(result: dict) -> str:
             f"{_f(r['window_travel'], '{:.1f}')} | {_f(r['bottom_clearance'], '{:.1f}')} | "
             f"{_f(r['centreline_offset'], '{:.3f}')} / "
             f"{_f(r.get('centreline_offset_mean'), '{:.3f}')}"
-            f" | {r['wall_s']:.0f} | {r['load']:.1f} |")
+            + _path_reference(r)
+            + f" | {r['wall_s']:.0f} | {r['load']:.1f} |")
     lines += _convergence(result["runs"], u_ref)
     lines += _step_studies(result["runs"], u_ref)
     return "\n".join(lines) + "\n"
+
+
+def _path_reference(r: dict) -> str:
+    """Wachs's path over the run's stretch of the fall (fig. 5a: its largest and mean distance
+    from the axis), for a run released as the benchmark is. Recorded by the metrics since
+    2026-12-01; for earlier off-axis rows recomputed from what they stored, the stretch being
+    exactly the release height less the final height (the clearance and half a diameter) and
+    the window's travel: the release 3 d below the top of a channel ``grid[1] / cells`` tall."""
+    ref = r.get("centreline_offset_reference")
+    mean = r.get("centreline_offset_mean_reference")
+    if ref is None and "offset" in r["variant"].split("+") and r.get("window_travel"):
+        length = r["grid"][1] / r["cells_per_diameter"]
+        fall_end = (length - 3.0 * D) - (r["bottom_clearance"] + 0.5) * D
+        got = wachs_path_offsets(1.5, fall_end - r["window_travel"] * D, fall_end)
+        ref, mean = got if got is not None else (None, None)
+    return "" if ref is None else f" (Wachs {ref:.3f} / {mean:.3f})"
 
 
 def _step_studies(runs: list[dict], u_ref: float) -> list[str]:

@@ -546,10 +546,17 @@ def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, 
       the disc at the end, in diameters (the bottom brakes it within about one);
     * ``centreline_offset`` and ``centreline_offset_mean``: the largest and the mean |x - w / 2|
       in the window, in diameters (the symmetric state on the axis is unstable at this Reynolds
-      number: the disc wanders across the axis, docs/fluid.md)."""
+      number: the disc wanders across the axis, docs/fluid.md);
+    * where the disc was released as the benchmark releases it (1 d off the axis, to 1e-3 d),
+      ``centreline_offset_reference`` and ``centreline_offset_mean_reference``: the same two of
+      Wachs's published path (fig. 5a, digitised; :func:`wachs_path_offsets`) over the same
+      stretch of the fall, the window's start and end measured in diameters below the release.
+      Reported beside the run's, not judged: the digitisation scatters by about 0.01 d, and the
+      swing is what a coarse grid resolves least (docs/fluid.md)."""
     from crosscheck.reference.fluid_data import (
         galileo_number,
         settling_drag_coefficient,
+        wachs_path_offsets,
         wachs_sedimentation,
     )
     from crosscheck.scene.shapes import Circle
@@ -583,16 +590,22 @@ def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, 
     u2 = _whole_cells_speed(tl[half], yl[half], spec.dx)
     u_ref = bench.reynolds * nu / d
     cd = settling_drag_coefficient(ratio, g, d, u)
-    return {"terminal_velocity": u, "terminal_velocity_reference": u_ref,
-            "terminal_velocity_error": float(abs(u / u_ref - 1.0)),
-            "terminal_reynolds": u * d / nu, "terminal_reynolds_reference": bench.reynolds,
-            "drag_coefficient": cd, "drag_coefficient_reference": bench.drag_coefficient,
-            "drag_coefficient_error": float(abs(cd / bench.drag_coefficient - 1.0)),
-            "terminal_velocity_unsteadiness": float(abs(u2 / u1 - 1.0)),
-            "window_travel": float((yl[0] - yl[-1]) / d),
-            "bottom_clearance": float((b["y"][-1] - d / 2.0) / d),
-            "centreline_offset": float(np.max(np.abs(b["x"][late] - width / 2.0)) / d),
-            "centreline_offset_mean": float(np.mean(np.abs(b["x"][late] - width / 2.0)) / d)}
+    out = {"terminal_velocity": u, "terminal_velocity_reference": u_ref,
+           "terminal_velocity_error": float(abs(u / u_ref - 1.0)),
+           "terminal_reynolds": u * d / nu, "terminal_reynolds_reference": bench.reynolds,
+           "drag_coefficient": cd, "drag_coefficient_reference": bench.drag_coefficient,
+           "drag_coefficient_error": float(abs(cd / bench.drag_coefficient - 1.0)),
+           "terminal_velocity_unsteadiness": float(abs(u2 / u1 - 1.0)),
+           "window_travel": float((yl[0] - yl[-1]) / d),
+           "bottom_clearance": float((b["y"][-1] - d / 2.0) / d),
+           "centreline_offset": float(np.max(np.abs(b["x"][late] - width / 2.0)) / d),
+           "centreline_offset_mean": float(np.mean(np.abs(b["x"][late] - width / 2.0)) / d)}
+    if abs(abs(b["x"][0] - width / 2.0) / d - 1.0) < 1e-3:
+        path = wachs_path_offsets(bench.density_ratio, (b["y"][0] - yl[0]) / d,
+                                  (b["y"][0] - yl[-1]) / d)
+        if path is not None:
+            out["centreline_offset_reference"], out["centreline_offset_mean_reference"] = path
+    return out
 
 
 # Why the cross-engine figures of a settling disc are reported and not judged (attached to the

@@ -48,6 +48,7 @@ TABLES = {"martin_moyce_1952": "martin_moyce1952_front_a2.25in.csv",
           "faxen_1946": "faxen1946_cylinder_between_plates.csv",
           "cylinder_drag_steady": "cylinder_drag_steady_low_re.csv",
           "wachs_2009": "wachs2009_disc_channel_sedimentation.csv",
+          "wachs_2009_path": "wachs2009_fig5a_path.csv",
           "ursell_1949": "ursell1949_semicircle_heave.csv"}
 for _re in GHIA_REYNOLDS:
     TABLES[f"ghia_1982_re{_re}_u"] = f"ghia1982_re{_re}_u_vertical_centreline.csv"
@@ -247,3 +248,39 @@ def wachs_sedimentation(density_ratio: float) -> SedimentationBenchmark:
                                WACHS_2009["nu"]),
         reynolds=float(table["reynolds"][i]), drag_coefficient=float(table["drag_coefficient"][i]),
         source=table.source)
+
+
+# Where Wachs's fig. 5a releases the disc, in its coordinates (d; the channel's axis at x = 2):
+# wachs2009_fig5a_path.csv's header says how this is known.
+WACHS_PATH_RELEASE = (1.0, 40.0)
+WACHS_PATH_AXIS = 2.0
+
+
+def wachs_path(density_ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    """Wachs's (2009, fig. 5a) path of the settling disc at ``density_ratio`` (1.5 or 3), as
+    ``(x, y)`` in diameters, ``y`` decreasing, points digitised at the same height merged (their
+    mean x): a function x(y) to interpolate."""
+    table = load_table("wachs_2009_path")
+    pick = np.isclose(table["density_ratio"], density_ratio, rtol=0, atol=1e-9)
+    if not pick.any():
+        raise KeyError(f"no Wachs (2009) path at rho_s / rho = {density_ratio}; known: "
+                       f"{sorted(set(table['density_ratio'].tolist()))}")
+    y, inverse = np.unique(table["y"][pick], return_inverse=True)
+    x = np.bincount(inverse, weights=table["x"][pick]) / np.bincount(inverse)
+    return x[::-1], y[::-1]
+
+
+def wachs_path_offsets(density_ratio: float, fall_start: float, fall_end: float,
+                       samples: int = 4001) -> tuple[float, float] | None:
+    """The largest and the mean |x - axis| (diameters) of Wachs's path while the disc falls from
+    ``fall_start`` to ``fall_end`` diameters below its release, the path interpolated linearly
+    at ``samples`` heights evenly spaced (a mean over the distance fallen, which at a steady
+    speed is the mean over time). None where that stretch leaves the digitised path."""
+    x, y = wachs_path(density_ratio)
+    top, bottom = WACHS_PATH_RELEASE[1] - fall_start, WACHS_PATH_RELEASE[1] - fall_end
+    if not (fall_start < fall_end and bottom >= y[-1] and top <= y[0]):
+        return None
+    heights = np.linspace(top, bottom, samples)
+    off = np.abs(np.interp(heights, y[::-1], x[::-1]) - WACHS_PATH_AXIS)
+    return float(off.max()), float(off.mean())
+
