@@ -9,6 +9,10 @@ Public API
 
 Shared references (fine-step, engine) run first; the cells that need one are dispatched when it
 is ready, with its file, or with the reason it failed. A cell never waits on anything else.
+Cells ready at the start go out heaviest first (``task["work"]``, plan.expected_work: the fluid
+cells by cells times steps), the rest in the matrix's order: a long cell dispatched last would
+run alone at the end (the gate's Wachs disc, 52 s, was the last of 307 cells and set its wall,
+120 s against 97-99 before). The reports keep the matrix's order whatever the dispatch.
 """
 
 from __future__ import annotations
@@ -33,6 +37,9 @@ def schedule(tasks: list[dict[str, Any]], backend, on_result: Callable[[dict, Re
             waiting[task["depends_on"]].append(task)
         else:
             ready.append(task)
+    # references first (cells wait on them), then the heaviest cells (stable: ties keep order)
+    ready = deque(sorted(ready, key=lambda t: (t.get("kind") != "reference",
+                                               -float(t.get("work") or 0.0))))
     inflight = 0
     held: list[dict[str, Any]] = []  # extra cost passes, released once no cell is waiting
     while ready or inflight or held:

@@ -131,6 +131,20 @@ def _names_for(scene, engine_name: str, requested: list[str] | None,
         return ["default"]  # the cell reports the import error as not applicable
 
 
+def expected_work(scene, dt: float) -> float:
+    """A cell's expected work, for the order cells are dispatched in (runner.schedule: the
+    heaviest first): a fluid cell's cells times steps (its cost grows with both, and its run
+    takes seconds to a minute), 0 for a rigid or contact cell (mostly well under a second; they
+    keep the matrix's order and fill the workers' ends)."""
+    if scene.fluid is None:
+        return 0.0
+    nx, *rest = scene.fluid.resolution
+    cells = float(nx)
+    for n in rest:
+        cells *= n
+    return cells * scene.run.duration / dt
+
+
 def build_matrix(scenes: list, *, engines: list[str] | None = None,
                  integrators: list[str] | None = None, dts: list[float] | None = None,
                  out: str | Path | None = None, save_trajectories: bool = False,
@@ -208,6 +222,7 @@ def build_matrix(scenes: list, *, engines: list[str] | None = None,
                         "reference_file": None, "reference_error": None,
                         "engine_refs": dict(engine_refs or {}), "depends_on": None,
                         "cost": dict(cost) if isinstance(cost, dict) else bool(cost),
+                        "work": expected_work(scene, dt),
                     }
                     if needs_run(spec):
                         if ref_dir is None:
