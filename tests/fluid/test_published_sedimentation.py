@@ -23,11 +23,11 @@ def test_the_disc_settles_at_the_published_terminal_speed(runs):
     dt = 0.01333 = 0.16 dx; measured 2026-12-01): U = 2.0514, Re 253.6 against 259.5 (-2.26 %),
     C_D 1.866 against 1.785; released 1e-9 / 1e-7 d farther off, -2.30 / -2.28 %. The disc
     reaches the axis, sheds and swings about it (0.32 d at most in the window), the state the
-    published number belongs to. The finer grids come closer: -1.89 / -1.85 / -1.35 / -0.83 % at
-    12 / 16 / 24 / 32 cells and the step 0.005 (sedimentation_offaxis_steps12.md ... 32.md), not
-    shown converged: the case's 2.5 % is what this grid reaches. (Released on the axis, the case
-    until 2026-12-01, the disc kept the symmetric wake, which drags about 12 % less: +2.12 % at
-    this grid, and more on finer ones; benchmarks/results/wachs_frame.md.)"""
+    published number belongs to. The finer grids come closer: -1.89 / -1.85 / -1.35 / -0.83 /
+    -0.14 % at 12 / 16 / 24 / 32 / 48 cells and the step 0.005 (sedimentation_offaxis_steps12.md
+    ... 48.md), not shown converged: the case's 2.5 % is what this grid reaches. (Released on
+    the axis, the case until 2026-12-01, the disc kept the symmetric wake, which drags about 12 %
+    less: +2.12 % at this grid, and more on finer ones; benchmarks/results/wachs_frame.md.)"""
     scene, rec = runs("sedimentation_wachs", "maccormack")
     assert rec.failure is None
     m = fluid_metrics(scene, rec)
@@ -47,8 +47,8 @@ def test_the_disc_settles_at_the_published_terminal_speed(runs):
     # about the axis (measured 0.32 d at most, 0.18 d on average over the window)
     assert 0.05 < m["centreline_offset_mean"] < m["centreline_offset"] < 0.6
     # beside it, Wachs's own path (fig. 5a) over the same stretch of the fall: 0.220 / 0.073 d.
-    # Reported, not judged: this grid swings wider (the 32-cell grid reads 0.218 / 0.088 d,
-    # benchmarks/results/sedimentation_offaxis_steps32.md)
+    # Reported, not judged: this grid swings wider (the grids of 16-48 cells read 0.22-0.30 /
+    # 0.09-0.11 d, benchmarks/results/sedimentation_offaxis_steps16.md ... 48.md)
     assert m["centreline_offset_reference"] == pytest.approx(0.220, abs=2e-3)
     assert m["centreline_offset_mean_reference"] == pytest.approx(0.073, abs=2e-3)
 
