@@ -9,6 +9,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import pytest
+
 from crosscheck.runner import schedule
 from crosscheck.runner.plan import build_matrix, expected_work
 from crosscheck.scene.loader import load_case
@@ -55,17 +57,24 @@ def test_references_then_the_heaviest_cells_then_the_matrix_order():
                                  "rigid-b"]
 
 
-def test_a_fluid_cells_work_is_its_cells_times_its_steps_and_a_rigid_cells_none():
+def test_a_fluid_cells_work_is_its_cells_times_its_steps_a_rigid_cells_its_bodies():
     """The Wachs disc (48 x 540 cells, 20 s at 0.01333) weighs more than the dam break and the
-    cavity of the gate; a rigid case weighs nothing. Halving the step doubles the work."""
+    cavity of the gate; a rigid cell weighs its bodies times its steps, so the ten-box stack
+    (the gate's longest rigid cell, 20 s with the LCP solver) goes before a single body and
+    after the fluid cells. Halving the step doubles the work."""
     wachs = load_case(CASES / "fluid" / "sedimentation_wachs.toml")
-    assert expected_work(wachs, 0.01333) == 48 * 540 * 20.0 / 0.01333
-    assert expected_work(wachs, 0.01333 / 2) == 2 * expected_work(wachs, 0.01333)
+    assert expected_work(wachs, 0.01333) == pytest.approx(48 * 540 * 20.0 / 0.01333, rel=1e-12)
+    assert expected_work(wachs, 0.01333 / 2) == pytest.approx(2 * expected_work(wachs, 0.01333),
+                                                              rel=1e-12)
     for other in ("dam_break.toml", "lid_driven_cavity.toml", "floating_box.toml"):
         scene = load_case(CASES / "fluid" / other)
         assert expected_work(scene, scene.run.dt) < expected_work(wachs, wachs.run.dt)
-    rigid = next(p for p in sorted(CASES.rglob("*.toml")) if "fluid" not in p.parts)
-    assert expected_work(load_case(rigid), 0.001) == 0.0
+    stack = load_case(next(CASES.rglob("stack_10.toml")))
+    single = load_case(next(CASES.rglob("damped_oscillator.toml")))
+    assert len(stack.bodies) == 10 and len(single.bodies) == 1
+    assert expected_work(stack, 0.001) == pytest.approx(10 * stack.run.duration / 0.001, rel=1e-12)
+    assert expected_work(single, 0.001) < expected_work(stack, 0.001) \
+        < expected_work(load_case(CASES / "fluid" / "tank_at_rest.toml"), 0.01)
 
 
 def test_the_matrix_carries_each_cells_work():

@@ -9,10 +9,13 @@ Public API
 
 Shared references (fine-step, engine) run first; the cells that need one are dispatched when it
 is ready, with its file, or with the reason it failed. A cell never waits on anything else.
-Cells ready at the start go out heaviest first (``task["work"]``, plan.expected_work: the fluid
-cells by cells times steps), the rest in the matrix's order: a long cell dispatched last would
-run alone at the end (the gate's Wachs disc, 52 s, was the last of 307 cells and set its wall,
-120 s against 97-99 before). The reports keep the matrix's order whatever the dispatch.
+Cells ready at the start go out heaviest first (``task["work"]``, plan.expected_work: a fluid
+cell's grid cells times steps, a rigid cell's bodies times steps): a long cell dispatched last
+runs alone at the end (the gate's Wachs disc, 52 s, was the last of 307 cells). The gate
+(`crosscheck run cases --no-cost`, 2 workers, warm, one after another on 2026-12-01): 127.5 s
+of wall in the matrix's order, 115.5 s with the fluid cells first, 107.3 s with the rigid ones
+ordered too, against 104 s of cell time per worker. The reports keep the matrix's order
+whatever the dispatch.
 """
 
 from __future__ import annotations

@@ -133,16 +133,18 @@ def _names_for(scene, engine_name: str, requested: list[str] | None,
 
 def expected_work(scene, dt: float) -> float:
     """A cell's expected work, for the order cells are dispatched in (runner.schedule: the
-    heaviest first): a fluid cell's cells times steps (its cost grows with both, and its run
-    takes seconds to a minute), 0 for a rigid or contact cell (mostly well under a second; they
-    keep the matrix's order and fill the workers' ends)."""
+    heaviest first): a fluid cell's grid cells times steps (its cost grows with both, and its
+    run takes seconds to a minute), a rigid or contact cell's bodies times steps (most take well
+    under a second; the many-body contact stacks and piles the longest of them, up to 20 s). A
+    rough order, not a prediction: the integrator and the contact model are not counted."""
+    steps = scene.run.duration / dt
     if scene.fluid is None:
-        return 0.0
+        return float(len(scene.bodies)) * steps
     nx, *rest = scene.fluid.resolution
     cells = float(nx)
     for n in rest:
         cells *= n
-    return cells * scene.run.duration / dt
+    return cells * steps
 
 
 def build_matrix(scenes: list, *, engines: list[str] | None = None,
