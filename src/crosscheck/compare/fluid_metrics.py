@@ -551,7 +551,9 @@ def published_sedimentation(scene: Any, record: Any, params: dict) -> dict[str, 
       ``centreline_offset_reference`` and ``centreline_offset_mean_reference``: the same two of
       Wachs's published path (fig. 5a, digitised; :func:`wachs_path_offsets`) over the same
       stretch of the fall, the window's start and end measured in diameters below the release.
-      Reported beside the run's, not judged: the digitisation scatters by about 0.01 d, and the
+      Reported beside the run's, not judged: the digitisation scatters by about 0.01 d, the
+      largest offset depends on aligning the figure's release with the run's (the gate case's
+      0.220 d is 0.299 with the stretch begun 1 d earlier; the mean 0.073 and 0.080), and the
       swing is what a coarse grid resolves least (docs/fluid.md)."""
     from crosscheck.reference.fluid_data import (
         galileo_number,
