@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -266,6 +267,7 @@ def run_one(case: str, cells: int | None, duration: float | None, integrator: st
     return entry
 
 
+@functools.cache
 def _target(case: str, q: str) -> float:
     """The value a quantity's error is read against: the reference table's precise value (for
     2D-2 FEATFLOW's reference computation since 2026-12-01), else the interval's centre."""

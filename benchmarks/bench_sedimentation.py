@@ -64,6 +64,8 @@ OUT = ROOT / "benchmarks" / "results"
 STEM = "sedimentation"
 D = 1.0
 NU = 0.008088
+RATIO = 1.5             # rho_s / rho of every run here (Wachs's r = 1.5)
+RELEASE_BELOW_TOP = 3.0  # diameters from the channel's closed top to the disc's release
 KEYS = ("terminal_velocity", "terminal_velocity_reference", "terminal_velocity_error",
         "terminal_reynolds", "drag_coefficient", "drag_coefficient_reference",
         "drag_coefficient_error", "terminal_velocity_unsteadiness", "window_travel",
@@ -74,7 +76,7 @@ KEYS = ("terminal_velocity", "terminal_velocity_reference", "terminal_velocity_e
 
 def case_text(cells: int, integrator: str = "maccormack", length: float = 30.0,
               duration: float = 12.0, settle: float = 5.0, offset: float = 0.0,
-              cfl: float = 1.0, ratio: float = 1.5, step: float = 0.02) -> str:
+              cfl: float = 1.0, ratio: float = RATIO, step: float = 0.02) -> str:
     """The benchmark's scene as a case file: ``cells`` cells per diameter, the disc released
     ``offset`` diameters off the axis, 3 d below the closed top of a channel ``length`` tall."""
     width = 4.0 * D
@@ -98,7 +100,7 @@ gravity = [0.0, -10.0]
 name = "disc"
 shape = {{ circle = {{ radius = {D / 2} }} }}
 density = {1000.0 * ratio}
-position = [{width / 2 + offset * D}, {length - 3.0 * D}]
+position = [{width / 2 + offset * D}, {length - RELEASE_BELOW_TOP * D}]
 
 [fluid]
 domain = [{width}, {length}]
@@ -478,13 +480,14 @@ def _path_reference(r: dict) -> str:
     from the axis), for a run released as the benchmark is. Recorded by the metrics since
     2026-12-01; for earlier off-axis rows recomputed from what they stored, the stretch being
     exactly the release height less the final height (the clearance and half a diameter) and
-    the window's travel: the release 3 d below the top of a channel ``grid[1] / cells`` tall."""
+    the window's travel: the release ``RELEASE_BELOW_TOP`` below the top of a channel
+    ``grid[1] / cells`` tall (:func:`case_text`)."""
     ref = r.get("centreline_offset_reference")
     mean = r.get("centreline_offset_mean_reference")
     if ref is None and "offset" in r["variant"].split("+") and r.get("window_travel"):
         length = r["grid"][1] / r["cells_per_diameter"]
-        fall_end = (length - 3.0 * D) - (r["bottom_clearance"] + 0.5) * D
-        got = wachs_path_offsets(1.5, fall_end - r["window_travel"] * D, fall_end)
+        fall_end = (length - RELEASE_BELOW_TOP * D) - (r["bottom_clearance"] + 0.5) * D
+        got = wachs_path_offsets(RATIO, fall_end - r["window_travel"] * D, fall_end)
         ref, mean = got if got is not None else (None, None)
     return "" if ref is None else f" (Wachs {ref:.3f} / {mean:.3f})"
 

@@ -24,7 +24,11 @@ D, U_MEAN = 0.1, 1.0
 
 def featflow_values(path: Path) -> dict[str, float]:
     """c_D,max, c_L,max, c_L,min, the mean lift and St of a FEATFLOW ``bdforces`` file."""
-    data = np.loadtxt(path)
+    try:
+        data = np.loadtxt(path)
+    except ValueError as exc:
+        raise SystemExit(f"{path}: not a FEATFLOW bdforces file (index, time, component, c_D, "
+                         f"c_L on each line): {exc}") from exc
     if data.ndim != 2 or data.shape[1] < 5:
         raise SystemExit(f"{path}: expected columns index, time, component, c_D, c_L")
     t, cd, cl = data[:, 1], data[:, 3], data[:, 4]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -140,11 +141,7 @@ def expected_work(scene, dt: float) -> float:
     steps = scene.run.duration / dt
     if scene.fluid is None:
         return float(len(scene.bodies)) * steps
-    nx, *rest = scene.fluid.resolution
-    cells = float(nx)
-    for n in rest:
-        cells *= n
-    return cells * steps
+    return float(math.prod(scene.fluid.resolution)) * steps
 
 
 def build_matrix(scenes: list, *, engines: list[str] | None = None,
