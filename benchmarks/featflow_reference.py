@@ -2,11 +2,15 @@
 from FEATFLOW's published force series, measured the way crosscheck measures its own runs.
 
     python benchmarks/featflow_reference.py PATH/bdforces_q2_lv6_dt4
+    python benchmarks/featflow_reference.py PATH/bdforces_q2_lv*_dt*     # the level series
 
 The file is FEATFLOW's reference computation of the benchmark (Q2 elements on mesh level 6,
 Crank-Nicolson, dt = 1/1600), one line a step: index, time, boundary component, c_D, c_L. A
 public copy: redbKIT/redbKIT, Problems/FEM_CFD_Dfg2D/ReferenceValues_Re100Periodic/ (commit
-5081083a). It is not shipped here; this script lets anyone re-derive the numbers the reference
+5081083a); FEATFLOW's whole set for 2D-2, levels 2-6 at dt = 1/100, 1/400 and 1/1600 (the
+level-6, 1/1600 file byte-identical to redbKIT's, sha256 39208f27...), in LKM-code-base/RotatingMHD,
+benchmarks/DFG/20141124_dfg_bench2_official.zip, logs/results_cc2d_bench2_referencenew/ (commit
+96e5b0d). Neither is shipped here; this script lets anyone re-derive the numbers the reference
 table quotes: the drag and lift extrema refined between samples by
 :func:`crosscheck.compare.fluid_metrics.peak` and the Strouhal number from the lift's upward
 zero crossings by :func:`crosscheck.compare.fluid_metrics.strouhal` (D = 0.1 m, U_mean = 1 m/s),
@@ -45,13 +49,26 @@ def featflow_values(path: Path) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("path", type=Path, help="a FEATFLOW bdforces file (2D-2)")
+    ap.add_argument("paths", type=Path, nargs="+", metavar="path",
+                    help="FEATFLOW bdforces files (2D-2); several: one table row each")
     args = ap.parse_args()
-    if not args.path.is_file():
-        raise SystemExit(f"{args.path}: no such file")
-    for k, v in featflow_values(args.path).items():
-        print(f"{k:24s} {v:.6g}")
-
+    for path in args.paths:
+        if not path.is_file():
+            raise SystemExit(f"{path}: no such file")
+    if len(args.paths) == 1:
+        for k, v in featflow_values(args.paths[0]).items():
+            print(f"{k:24s} {v:.6g}")
+        return
+    # one row a file: how the reference converges over FEATFLOW's levels and steps
+    keys = ("drag_coefficient_max", "lift_coefficient_max", "lift_coefficient_min",
+            "strouhal_number")
+    print("| file | dt | " + " | ".join(keys) + " |")
+    print("|---|---|" + "---|" * len(keys))
+    for path in args.paths:
+        t = np.loadtxt(path, usecols=1)
+        values = featflow_values(path)
+        cells = " | ".join(f"{values[k]:.6g}" for k in keys)
+        print(f"| {path.name} | 1/{1.0 / float(np.median(np.diff(t))):.0f} | {cells} |")
 
 if __name__ == "__main__":
     main()
