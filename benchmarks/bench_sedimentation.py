@@ -125,6 +125,7 @@ HELD_SPEED = 2.1        # about the terminal speed (Wachs: 2.0988)
 # dragged 4.7 % more than held still (docs/fluid.md, "The held disc held still")
 HELD_DENSITY = 1.0e10
 CREEP_DENSITY = 1.0e7
+HELD_DYNAMIC_PRESSURE = 0.5 * 1000.0 * HELD_SPEED ** 2 * D     # C_D's denominator per depth
 
 
 def held_text(cells: int, step: float, integrator: str, duration: float, body: bool,
@@ -172,7 +173,7 @@ def held_run(cells: int, step: float, integrator: str = "maccormack",
     solver measures), beside the fixed obstacle's force in the same scene over the same window
     (the fluid solver alone: what the coupling at rest should reproduce). The disc is on the
     axis and the wake symmetric over the run."""
-    q = 0.5 * 1000.0 * HELD_SPEED ** 2 * D
+    q = HELD_DYNAMIC_PRESSURE
     frame = load_case_text(held_text(cells, step, integrator, duration, False), "frame.toml")
     t0 = time.perf_counter()
     fixed_rec = FluidRun(frame, integrator).record()
@@ -226,7 +227,7 @@ def held_markdown(rows: list[dict]) -> str:
         if r.get("failure"):
             lines.append(f"| {r['run']} | failed: {r['failure']} |")
             continue
-        fluid_cd = r["fluid_balance"] / (0.5 * 1000.0 * HELD_SPEED ** 2 * D)
+        fluid_cd = r["fluid_balance"] / HELD_DYNAMIC_PRESSURE
         fixed = r.get("fixed_drag_coefficient")
         versus = "-" if fixed is None else f"{fluid_cd / fixed - 1.0:+.2%}"
         lines.append(f"| {r['run']} | {r['cells_per_diameter']} | {r['step']:g} | "
@@ -247,7 +248,7 @@ def placement_run(cells: int, step: float, integrator: str = "maccormack") -> li
     downstream by that fraction of a cell: how much its drag depends on where the grid cuts
     it. A disc that moves (a settling one, or a held one that creeps) samples these placements
     in turn; one at rest keeps one of them."""
-    q = 0.5 * 1000.0 * HELD_SPEED ** 2 * D
+    q = HELD_DYNAMIC_PRESSURE
     rows = []
     for shift in PLACEMENT_SHIFTS:
         t0 = time.perf_counter()
@@ -298,50 +299,32 @@ def placement_markdown(rows: list[dict]) -> str:
 def placement_study(specs: list[str]) -> None:
     """``--placement cells:step[:integrator] ...``: the rows of each grid's placements added to
     (or replaced in) ``sedimentation_placement.{json,md}``, written after each grid."""
-    path = OUT / f"{STEM}_placement.json"
-    for args in _parse_cells_step("--placement", specs):
-        new = placement_run(*args)
-        rows = json.loads(path.read_text())["runs"] if path.exists() else []
-        names = {r["run"] for r in new}
-        rows = [r for r in rows if r["run"] not in names] + new
-        OUT.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"runs": rows, "machine": platform.machine()}, indent=2))
-        (OUT / f"{STEM}_placement.md").write_text(placement_markdown(rows))
-        print(json.dumps(new), flush=True)
+    _study("placement", _parse_cells_step("--placement", specs), placement_run,
+           placement_markdown)
 
 
 def held_study(specs: list[str]) -> None:
     """``--held cells:step[:integrator[:density]] ...``: rows added to (or replaced in)
     ``sedimentation_held.{json,md}``."""
-    parsed = []
-    for spec in specs:
-        parts = spec.split(":")
-        if len(parts) != 4:
-            parsed.append(_parse_cells_step("--held", [spec])[0])
-            continue
-        try:
-            density = float(parts[3])
-        except ValueError:
-            raise SystemExit(f"--held: expected cells:step:integrator:density, got {spec!r}") \
-                from None
-        parsed.append((*_parse_cells_step("--held", [":".join(parts[:3])])[0], density))
-    _study("held", parsed, held_run, held_markdown)
+    _study("held", _parse_cells_step("--held", specs, density=True), held_run, held_markdown)
 
 
 def _study(name: str, parsed: list[tuple], run, markdown) -> None:
-    """Run each ``run(*args)`` and add its row to (or replace it in)
-    ``sedimentation_<name>.{json,md}``, written after every run (a long study survives a stop).
-    The file is read again before each write: two studies (say one per scheme) may run side by
-    side."""
+    """Run each ``run(*args)`` and add its row (or its list of rows) to the others in
+    ``sedimentation_<name>.{json,md}``, replacing those of the same name, written after every
+    run (a long study survives a stop). The file is read again before each write: two studies
+    (say one per scheme) may run side by side."""
     path = OUT / f"{STEM}_{name}.json"
     for args in parsed:
-        row = run(*args)
+        result = run(*args)
+        new = result if isinstance(result, list) else [result]
+        names = {r["run"] for r in new}
         rows = json.loads(path.read_text())["runs"] if path.exists() else []
-        rows = [r for r in rows if r["run"] != row["run"]] + [row]
+        rows = [r for r in rows if r["run"] not in names] + new
         OUT.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps({"runs": rows, "machine": platform.machine()}, indent=2))
         (OUT / f"{STEM}_{name}.md").write_text(markdown(rows))
-        print(json.dumps(row), flush=True)
+        print(json.dumps(result), flush=True)
 
 
 def driven_text(cells: int, step: float, integrator: str, duration: float) -> str:
@@ -435,16 +418,20 @@ def motion_markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _parse_cells_step(flag: str, specs: list[str]) -> list[tuple]:
+def _parse_cells_step(flag: str, specs: list[str], density: bool = False) -> list[tuple]:
+    """``cells:step[:integrator]`` (and with ``density`` a fourth field, the held disc's
+    density) -> ``(cells, step[, integrator[, density]])`` each."""
     parsed = []
+    form = "cells:step[:integrator[:density]]" if density else "cells:step[:integrator]"
     for spec in specs:
         parts = spec.split(":")
         try:
-            if len(parts) not in (2, 3):
+            if len(parts) not in ((2, 3, 4) if density else (2, 3)):
                 raise ValueError
-            parsed.append((int(parts[0]), float(parts[1]), *parts[2:]))
+            parsed.append((int(parts[0]), float(parts[1]), *parts[2:3],
+                           *(float(x) for x in parts[3:])))
         except ValueError:
-            raise SystemExit(f"{flag}: expected cells:step[:integrator], got {spec!r}") from None
+            raise SystemExit(f"{flag}: expected {form}, got {spec!r}") from None
     return parsed
 
 

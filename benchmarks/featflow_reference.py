@@ -27,7 +27,8 @@ D, U_MEAN = 0.1, 1.0
 
 
 def featflow_values(path: Path) -> dict[str, float]:
-    """c_D,max, c_L,max, c_L,min, the mean lift and St of a FEATFLOW ``bdforces`` file."""
+    """The sampling step, c_D,max, c_L,max, c_L,min, the mean lift and St of a FEATFLOW
+    ``bdforces`` file."""
     try:
         data = np.loadtxt(path)
     except ValueError as exc:
@@ -41,7 +42,8 @@ def featflow_values(path: Path) -> dict[str, float]:
     x = cl - cl.mean()
     up = np.flatnonzero((x[:-1] < 0.0) & (x[1:] >= 0.0))
     mean = float(np.mean(cl[up[0]:up[-1]])) if up.shape[0] > 1 else float("nan")
-    return {"drag_coefficient_max": peak(cd), "lift_coefficient_max": peak(cl),
+    return {"dt": float(np.median(np.diff(t))),
+            "drag_coefficient_max": peak(cd), "lift_coefficient_max": peak(cl),
             "lift_coefficient_min": -peak(-cl), "lift_coefficient_mean": mean,
             "strouhal_number": st, "periods": float(periods), "t0": float(t[0]),
             "t1": float(t[-1])}
@@ -65,10 +67,10 @@ def main() -> None:
     print("| file | dt | " + " | ".join(keys) + " |")
     print("|---|---|" + "---|" * len(keys))
     for path in args.paths:
-        t = np.loadtxt(path, usecols=1)
         values = featflow_values(path)
         cells = " | ".join(f"{values[k]:.6g}" for k in keys)
-        print(f"| {path.name} | 1/{1.0 / float(np.median(np.diff(t))):.0f} | {cells} |")
+        print(f"| {path.name} | 1/{1.0 / values['dt']:.0f} | {cells} |")
+
 
 if __name__ == "__main__":
     main()
