@@ -67,6 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.compare.fluid_metrics import fluid_metrics, force_coefficients, peak
+from crosscheck.compare.grid_convergence import three_grids
 from crosscheck.reference.fluid_data import dfg_reference
 from crosscheck.scene.loader import load_case, load_case_text
 from crosscheck.sim.fluid.run import FluidRun
@@ -301,42 +302,20 @@ def observed_orders(runs: list[dict], case: str) -> list[dict]:
     return out
 
 
-def _order(f1: float, f2: float, f3: float, h1: float, h2: float, h3: float) -> float | None:
-    """The order p with (f1 - f2) / (f2 - f3) = (h1^p - h2^p) / (h2^p - h3^p) (three grids of
-    any spacings h1 > h2 > h3), by bisection on p in (0.05, 8); None when the differences do not
-    shrink monotonically."""
-    if (f2 - f3) == 0 or (f1 - f2) / (f2 - f3) <= 1.0:
-        return None
-    target = (f1 - f2) / (f2 - f3)
-
-    def g(p: float) -> float:
-        return (h1**p - h2**p) / (h2**p - h3**p) - target
-
-    lo, hi = 0.05, 8.0
-    if g(lo) * g(hi) > 0:
-        return None
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if g(lo) * g(mid) > 0 else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
 def richardson(runs: list[dict], case: str) -> dict:
     """Order and extrapolated value from the three finest grids (no reference needed):
-    ``f(h) = f0 + C h^p`` through the three points."""
+    ``f(h) = f0 + C h^p`` through the three points (compare/grid_convergence.py); None for a
+    quantity whose differences do not shrink monotonically."""
     runs = sorted(runs, key=lambda r: r["cells_per_diameter"])[-3:]
     if len(runs) < 3:
         return {}
-    h = [1.0 / r["cells_per_diameter"] for r in runs]
+    h = tuple(1.0 / r["cells_per_diameter"] for r in reversed(runs))   # finest first
     res = {"grids": [r["cells_per_diameter"] for r in runs]}
     for q in QUANTITIES[case]:
-        f = [r["metrics"].get(q) for r in runs]
-        p = None if None in f else _order(*f, *h)
-        if p is None:
-            res[q] = None
-            continue
-        c = (f[1] - f[2]) / (h[1] ** p - h[2] ** p)
-        res[q] = {"order": p, "extrapolated": f[2] - c * h[2] ** p}
+        f = tuple(r["metrics"].get(q) for r in reversed(runs))
+        t = None if None in f else three_grids(h, f)
+        res[q] = ({"order": t.order, "extrapolated": t.limit}
+                  if t is not None and t.kind == "monotone" else None)
     return res
 
 

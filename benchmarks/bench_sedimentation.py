@@ -57,6 +57,7 @@ import numpy as np
 from bench_sedimentation_frame import record_held, run_table  # shared with the frame benchmark
 
 from crosscheck.compare.fluid_metrics import fluid_metrics
+from crosscheck.compare.grid_convergence import three_grids
 from crosscheck.reference.fluid_data import wachs_path_offsets, wachs_sedimentation
 from crosscheck.scene.loader import load_case_text
 from crosscheck.sim.fluid.run import FluidRun
@@ -532,27 +533,11 @@ def _f(x, fmt="{:.4g}"):
 
 
 def richardson(hs: list[float], fs: list[float]) -> tuple[float, float] | None:
-    """The order p and limit f0 that put f0 + C h^p through three (h, f), h decreasing; None
-    when the differences change sign (no monotone convergence to extrapolate)."""
-    (h1, h2, h3), (f1, f2, f3) = hs, fs
-    if (f1 - f2) * (f2 - f3) <= 0:
-        return None
-    target = (f1 - f2) / (f2 - f3)
-    lo, hi = 0.05, 8.0
-
-    def g(p):
-        return (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - target
-
-    if g(lo) * g(hi) > 0:
-        return None
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if g(lo) * g(mid) <= 0:
-            hi = mid
-        else:
-            lo = mid
-    p = 0.5 * (lo + hi)
-    return p, f3 - (f2 - f3) / ((h2 / h3) ** p - 1.0)
+    """The order p and limit f0 that put f0 + C h^p through three (h, f), h decreasing
+    (compare/grid_convergence.py); None when the differences do not shrink monotonically (no
+    convergence to extrapolate)."""
+    t = three_grids(tuple(hs[::-1]), tuple(fs[::-1]))
+    return (t.order, t.limit) if t.kind == "monotone" else None
 
 
 def markdown(result: dict) -> str:
