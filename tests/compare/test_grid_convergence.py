@@ -58,12 +58,19 @@ def test_what_has_no_limit_gets_none():
     assert osc.order > 0
     grow = three_grids(h, (1.0, 1.3, 1.4))            # the finer pair differs more
     assert grow.kind == "divergent" and grow.order is None and grow.limit is None
-    # uneven ratios: e21 / e32 must stay below ln r21 / ln r32 for a positive order
+    # uneven ratios: e21 / e32 must stay below ln r21 / ln r32 for a positive order; just
+    # below it the order is small and positive, just above there is none
     uneven = (1.0 / 64, 1.0 / 48, 1.0 / 24)            # r21 = 1.33, r32 = 2
     ceiling = math.log(64 / 48) / math.log(2)
-    assert three_grids(uneven, (0.0, ceiling * 1.01, 1.01 + ceiling * 1.01)).kind == "divergent"
+    above = three_grids(uneven, (0.0, 1.05 * ceiling, 1.05 * ceiling + 1.0))
+    assert above.kind == "divergent" and above.order is None
+    below = three_grids(uneven, (0.0, 0.95 * ceiling, 0.95 * ceiling + 1.0))
+    assert below.kind == "monotone" and 0.0 < below.order < 0.2
     same = three_grids(h, (2.0, 2.0, 2.5))
     assert same.kind == "converged" and same.limit == 2.0 and same.gci_fine == 0.0
+    # a finer pair that has stopped changing (an order past 64) is converged, not divergent
+    flat = three_grids((1.0 / 56, 1.0 / 48, 1.0 / 40), (2.0, 2.0 + 1e-9, 2.1))
+    assert flat.kind == "converged" and flat.limit == 2.0 and flat.order is None
 
 
 def test_the_grids_must_be_given_in_order():

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from scipy.optimize import brentq
 
 SAFETY_FACTOR = 1.25   # Celik et al. for three grids and an apparent order (Roache 1998)
+MAX_ORDER = 64.0       # beyond it a triple's finer pair has simply stopped changing
 
 
 @dataclass(frozen=True)
@@ -33,8 +34,10 @@ class ThreeGrids:
     """One triple, finest first. ``kind``: ``monotone`` (the differences shrink without changing
     sign: the order, limit and indices are given), ``oscillatory`` (they change sign: only the
     order Celik's formula gives with the sign, no limit), ``divergent`` (they grow) or
-    ``converged`` (the finer two agree exactly). ``divergent`` also names differences of one
-    sign that shrink too little for any positive order."""
+    ``converged`` (the finer two agree exactly, or their difference is smaller than any order
+    up to ``MAX_ORDER`` would leave: the limit is the fine value, no order or index given).
+    ``divergent`` also names differences of one sign that shrink too little for any positive
+    order."""
 
     h: tuple[float, float, float]
     f: tuple[float, float, float]
@@ -51,8 +54,9 @@ def apparent_order(h: tuple[float, float, float], f: tuple[float, float, float])
     Differences of one sign: the root of ``(h2^p - h1^p) / (h3^p - h2^p) = e21 / e32``, which
     falls from ``ln r21 / ln r32`` at ``p -> 0`` to 0, so there is one positive root exactly
     when ``0 < e21 / e32 < ln r21 / ln r32`` (None otherwise: the finer pair differs too much
-    for any positive order). Differences that change sign: Celik et al.'s eqs. 3-4 with ``s =
-    -1`` by fixed-point iteration, a heuristic the procedure itself flags (no limit follows)."""
+    for any positive order; ``inf`` when the root lies beyond ``MAX_ORDER``). Differences that
+    change sign: Celik et al.'s eqs. 3-4 with ``s = -1`` by fixed-point iteration, a heuristic
+    the procedure itself flags (no limit follows; None when the iteration does not settle)."""
     r21, r32 = h[1] / h[0], h[2] / h[1]
     e21, e32 = f[1] - f[0], f[2] - f[1]
     if e21 * e32 > 0:
@@ -63,15 +67,17 @@ def apparent_order(h: tuple[float, float, float], f: tuple[float, float, float])
         def gap(p: float) -> float:
             return (h[1] ** p - h[0] ** p) / (h[2] ** p - h[1] ** p) - target
 
-        return brentq(gap, 1e-9, 64.0, xtol=1e-14) if gap(64.0) < 0.0 else None
+        if gap(MAX_ORDER) >= 0.0:
+            return math.inf
+        return brentq(gap, 1e-9, MAX_ORDER, xtol=1e-14)
     p = abs(math.log(abs(e32 / e21))) / math.log(r21)   # the equal-ratio value to start from
     for _ in range(500):
         new = abs(math.log(abs(e32 / e21)) + math.log((r21 ** p + 1.0) / (r32 ** p + 1.0))
                   ) / math.log(r21)
         if abs(new - p) < 1e-12:
-            break
+            return new
         p = new
-    return p
+    return None
 
 
 def three_grids(h: tuple[float, float, float], f: tuple[float, float, float],
@@ -92,6 +98,8 @@ def three_grids(h: tuple[float, float, float], f: tuple[float, float, float],
     if p is None:
         # the finer pair differs by too much for any positive order
         return ThreeGrids(h, f, "divergent")
+    if math.isinf(p):
+        return ThreeGrids(h, f, "converged", limit=f[0])
     r21, r32 = h[1] / h[0], h[2] / h[1]
     limit = (r21 ** p * f[0] - f[1]) / (r21 ** p - 1.0)
     # relative indices, as the procedure states them (none about a zero value)
