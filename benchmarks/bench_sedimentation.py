@@ -552,6 +552,9 @@ def grid_sequence_markdown() -> str:
         rows += [r for r in json.loads(path.read_text())["runs"]
                  if r["variant"] == GRID_SEQUENCE_RUN and not r.get("failure")
                  and r["terminal_velocity"] is not None]
+    if len(rows) < 3:
+        raise SystemExit(f"--grids: {len(rows)} finished `{GRID_SEQUENCE_RUN}` rows in "
+                         f"{OUT}/{STEM}_offaxis_steps*.json; a grid sequence needs three")
     rows.sort(key=lambda r: r["cells_per_diameter"])
     lines = ["# The grid sequence of the disc settling against Wachs (2009)", "",
              "Written by `benchmarks/bench_sedimentation.py --grids` from the "
